@@ -1,0 +1,265 @@
+"""The parameter table of MODEL.md §12: names, units, defaults, checks, named cases.
+
+This is the one place defaults live. The CLI, the YAML sweep specs and the Parquet
+columns use exactly these names; everything else only overrides them.
+
+`resolve(scene, case, **overrides)` checks a parameter set and returns a plain dict of
+every parameter (defaults filled in, derived values computed). Any bad input raises
+`ParameterError` (a ValueError) naming the parameter, the value and what is allowed,
+before anything runs.
+"""
+from __future__ import annotations
+
+import difflib
+import math
+from dataclasses import dataclass
+from typing import Any
+
+SCENES = ("cycle", "impact", "freefall")
+
+
+class ParameterError(ValueError):
+    """Bad user input: names the parameter, the value and what is allowed."""
+
+
+@dataclass(frozen=True)
+class Param:
+    """One row of MODEL.md §12 (or a numerical setting of the engine)."""
+
+    name: str
+    unit: str
+    default: Any
+    doc: str
+    kind: str = "float"  # float | int | choice
+    choices: tuple = ()
+    lo: float = -math.inf
+    hi: float = math.inf
+    lo_open: bool = False  # lo < x instead of lo <= x
+    derived: bool = False  # default None means "derived from the others"
+    numerics: bool = False  # an engine setting, not physics
+
+    def allowed(self) -> str:
+        if self.kind == "choice":
+            return "one of " + ", ".join(repr(c) for c in self.choices)
+        lo = "" if self.lo == -math.inf else (f"{self.lo:g} < " if self.lo_open else f"{self.lo:g} <= ")
+        hi = "" if self.hi == math.inf else f" <= {self.hi:g}"
+        what = "an integer" if self.kind == "int" else "a number"
+        rng = f"{lo}{self.name}{hi}" if (lo or hi) else ""
+        extra = " (or null for the derived default)" if self.derived else ""
+        return f"{what}{' with ' + rng if rng else ''}{extra}"
+
+
+_PI = math.pi
+
+#: MODEL.md §12, in its order. Units in brackets in the docs.
+TABLE: tuple[Param, ...] = (
+    Param("v", "m/s", 2.0, "belt speed", lo=0.0, hi=50.0, lo_open=True),
+    Param("P_max", "m", 0.7, "belt width", lo=0.0, hi=20.0, lo_open=True),
+    Param("mu1", "-", 0.4, "load-belt friction coefficient", lo=0.0, hi=5.0),
+    Param("mu2", "-", 0.25, "load-fence and load-rail friction coefficient", lo=0.0, hi=5.0),
+    Param("L", "m", 0.7, "load length (along the belt at phi = 0)", lo=0.0, hi=20.0, lo_open=True),
+    Param("A", "m", 0.1, "load width", lo=0.0, hi=20.0, lo_open=True),
+    Param("m1", "kg", 15.0, "load mass", lo=0.0, hi=1e5, lo_open=True),
+    Param("dP", "m", 0.0, "gap between the load's near side and the rail", lo=0.0, hi=20.0),
+    Param("R_s", "m", 0.0, "leading edge's x at fence activation", lo=-50.0, hi=50.0),
+    Param("phi0", "rad", 0.0, "initial orientation of the load", lo=-_PI, hi=_PI),
+    Param("e", "-", 0.2, "restitution coefficient", lo=0.01, hi=1.0),
+    Param("k1", "N/m^1.5", 4.0e6, "contact stiffness of the modified Kelvin law", lo=0.0, hi=1e13, lo_open=True),
+    Param("contact_law", "-", "hertz", "hertz (paper eq. 3) or linear (eq. 2)", kind="choice",
+          choices=("hertz", "linear")),
+    Param("k_lin", "N/m", None, "stiffness of the linear law (derived: equal undamped peak in free fall)",
+          lo=0.0, hi=1e13, lo_open=True, derived=True),
+    Param("l", "m", 1.2, "fence length", lo=0.0, hi=20.0, lo_open=True),
+    Param("m2", "kg", 5.0, "fence mass; I2 = m2 l^2/3", lo=0.0, hi=1e5, lo_open=True),
+    Param("I2", "kg m^2", None, "fence moment of inertia about the pivot (derived: m2 l^2/3)",
+          lo=0.0, hi=1e6, lo_open=True, derived=True),
+    Param("B2", "N m s/rad", 72.0, "flexible element damping", lo=0.0, hi=1e6),
+    Param("K2", "N m/rad", 570.0, "flexible element stiffness", lo=0.0, hi=1e7),
+    Param("drive", "-", "flexible", "flexible / rigid / free fence drive", kind="choice",
+          choices=("flexible", "rigid", "free")),
+    Param("t_c", "s", 1.36, "work cycle time (one crank turn)", lo=0.0, hi=100.0, lo_open=True),
+    Param("swing", "rad", math.radians(42.0), "drive swing psi", lo=0.0, hi=_PI / 2, lo_open=True),
+    Param("profile", "-", "crank_rocker", "crank_rocker / harmonic drive profile", kind="choice",
+          choices=("crank_rocker", "harmonic")),
+    Param("coupler_ratio", "-", 2.5, "coupler over rocker length b/c (crank_rocker only)",
+          lo=0.0, hi=100.0, lo_open=True),
+    Param("H", "m", 0.3, "permitted drop height", lo=0.0, hi=100.0, lo_open=True),
+    Param("dalpha_perm", "rad", math.radians(15.0), "permitted deflection", lo=0.0, hi=_PI, lo_open=True),
+    Param("R", "m", 1.2, "impact scene: distance of the impact point from the pivot", lo=0.0, hi=20.0,
+          lo_open=True),
+    Param("w", "m/s", 2.0, "impact scene: normal approach speed", lo=0.0, hi=100.0, lo_open=True),
+    Param("eps_v", "m/s", 1e-3, "friction regularisation velocity", lo=0.0, hi=1.0, lo_open=True),
+    Param("t_max", "s", None, "end of a cycle without outcome (derived: t_c + 1)", lo=0.0, hi=1000.0,
+          lo_open=True, derived=True),
+    # --- engine settings (not physics; recorded in every result table) ---
+    Param("step_factor", "-", 1.0, "multiplies every step size of the integrator (0.1 = 10x finer)",
+          lo=1e-4, hi=10.0, numerics=True),
+)
+
+BY_NAME: dict[str, Param] = {p.name: p for p in TABLE}
+NAMES: tuple[str, ...] = tuple(p.name for p in TABLE)
+
+#: The paper's unfavourable positions (§4.2), MODEL.md §12.
+CASES: dict[str, dict[str, float]] = {
+    "small_far": {"L": 0.2, "A": 0.1, "dP": 0.6},
+    "long_near": {"L": 0.7, "A": 0.1, "dP": 0.0},
+}
+
+#: Which parameters each scene's model uses (the rest are carried but ignored).
+SCENE_USES: dict[str, frozenset] = {
+    "freefall": frozenset({"m1", "e", "k1", "contact_law", "k_lin", "H"}),
+    "impact": frozenset({"m1", "e", "k1", "contact_law", "k_lin", "H", "l", "m2", "I2", "B2", "K2",
+                         "drive", "R", "w"}),
+    "cycle": frozenset(set(NAMES) - {"R", "w"}),
+}
+
+
+def defaults() -> dict[str, Any]:
+    """Every parameter at its MODEL.md §12 default (derived ones as None)."""
+    return {p.name: p.default for p in TABLE}
+
+
+def _unknown(name: str, what: str = "parameter") -> ParameterError:
+    near = difflib.get_close_matches(name, NAMES, n=1)
+    hint = f"; did you mean {near[0]!r}?" if near else ""
+    return ParameterError(f"unknown {what} {name!r}{hint} (known: {', '.join(NAMES)})")
+
+
+def check_value(name: str, value: Any) -> Any:
+    """Check one value against its row of the table; return it normalised (float/str/None)."""
+    if name not in BY_NAME:
+        raise _unknown(name)
+    p = BY_NAME[name]
+    if value is None:
+        if p.derived:
+            return None
+        raise ParameterError(f"{name} = None is not allowed: {name} must be {p.allowed()}")
+    if p.kind == "choice":
+        if not isinstance(value, str) or value not in p.choices:
+            raise ParameterError(f"{name} = {value!r} is not allowed: {name} must be {p.allowed()}")
+        return value
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        try:  # numpy scalars
+            import numpy as np
+
+            if isinstance(value, np.generic) and np.issubdtype(type(value), np.number):
+                value = value.item()
+            else:
+                raise TypeError
+        except TypeError:
+            raise ParameterError(
+                f"{name} = {value!r} ({type(value).__name__}) is not allowed: {name} must be {p.allowed()}"
+            ) from None
+    x = float(value)
+    if not math.isfinite(x):
+        raise ParameterError(f"{name} = {value!r} is not allowed: {name} must be {p.allowed()}")
+    ok_lo = x > p.lo if p.lo_open else x >= p.lo
+    if not ok_lo or x > p.hi:
+        raise ParameterError(f"{name} = {value!r} is out of range: {name} must be {p.allowed()}")
+    return x
+
+
+def parse_value(name: str, text: str) -> Any:
+    """Turn a command-line string NAME=TEXT into a checked value."""
+    if name not in BY_NAME:
+        raise _unknown(name)
+    p = BY_NAME[name]
+    if p.kind == "choice":
+        return check_value(name, text)
+    if p.derived and text.lower() in ("none", "null", "derived"):
+        return None
+    try:
+        x = float(text)
+    except ValueError:
+        raise ParameterError(f"{name} = {text!r} is not a number: {name} must be {p.allowed()}") from None
+    return check_value(name, x)
+
+
+def resolve(scene: str = "cycle", case: str | None = None, **overrides: Any) -> dict[str, Any]:
+    """Check and complete a parameter set: defaults < named case < explicit overrides.
+
+    Returns a dict with every name of TABLE (derived ones filled in) plus `scene` and `case`.
+    Raises ParameterError on anything wrong; nothing is computed then.
+    """
+    if scene not in SCENES:
+        raise ParameterError(f"scene = {scene!r} is not allowed: scene must be one of {', '.join(SCENES)}")
+    if case is not None and case not in CASES:
+        raise ParameterError(
+            f"case = {case!r} is not allowed: case must be one of {', '.join(CASES)} (or omitted)"
+        )
+    vals = defaults()
+    if case is not None:
+        vals.update(CASES[case])
+    for name, value in overrides.items():
+        vals[name] = check_value(name, value)
+    # derived values (MODEL.md §3, §4, §12)
+    if vals["I2"] is None:
+        vals["I2"] = vals["m2"] * vals["l"] ** 2 / 3.0
+    if vals["t_max"] is None:
+        vals["t_max"] = vals["t_c"] + 1.0
+    if vals["profile"] == "crank_rocker" and vals["coupler_ratio"] <= math.sin(vals["swing"] / 2):
+        raise ParameterError(
+            f"coupler_ratio = {vals['coupler_ratio']!r} is not allowed with swing = {vals['swing']!r}: "
+            f"the crank-rocker needs coupler_ratio > sin(swing/2) = {math.sin(vals['swing'] / 2):.6g}"
+        )
+    if scene == "cycle":
+        _check_start(vals)
+    vals["scene"] = scene
+    vals["case"] = case
+    return vals
+
+
+def load_corners(L: float, A: float, phi: float) -> list[tuple[float, float]]:
+    """Corner offsets from the centroid, j = 0..3 at local (+L/2,+A/2), (-L/2,+A/2), ... (MODEL.md §1)."""
+    c, s = math.cos(phi), math.sin(phi)
+    loc = ((L / 2, A / 2), (-L / 2, A / 2), (-L / 2, -A / 2), (L / 2, -A / 2))
+    return [(c * a - s * b, s * a + c * b) for a, b in loc]
+
+
+def initial_centroid(L: float, A: float, phi0: float, R_s: float, dP: float) -> tuple[float, float]:
+    """MODEL.md §1: foremost corner at x = R_s, lowest corner at y = dP."""
+    cs = load_corners(L, A, phi0)
+    return R_s - max(x for x, _ in cs), dP - min(y for _, y in cs)
+
+
+def _check_start(vals: dict[str, Any]) -> None:
+    """MODEL.md §1: every corner within 0 <= y <= P_max and the load not past the fence."""
+    if vals["R_s"] >= vals["l"]:
+        raise ParameterError(
+            f"R_s = {vals['R_s']!r} is not allowed: the load would start past the fence; R_s must be < l = {vals['l']!r}"
+        )
+    xc, yc = initial_centroid(vals["L"], vals["A"], vals["phi0"], vals["R_s"], vals["dP"])
+    top = max(yc + y for _, y in load_corners(vals["L"], vals["A"], vals["phi0"]))
+    if top > vals["P_max"] * (1 + 1e-12):
+        raise ParameterError(
+            f"dP = {vals['dP']!r} is not allowed with L = {vals['L']!r}, A = {vals['A']!r}, phi0 = {vals['phi0']!r}: "
+            f"the load's far corner would be at y = {top:.6g} > P_max = {vals['P_max']!r}; "
+            f"dP must be <= {vals['dP'] + vals['P_max'] - top:.6g}"
+        )
+
+
+def model_key(vals: dict[str, Any]) -> tuple:
+    """The values a scene's model actually uses, as a hashable key.
+
+    Two resolved parameter sets with the same key give the same results, so a sweep
+    simulates each key once (MODEL.md §8: model only what a scene needs). Unused
+    parameters: R and w outside `impact`; B2, K2, m2, I2 under `drive = rigid` in a cycle
+    (the drive is kinematic); B2, K2 under `drive = free`; k_lin under the Hertz law;
+    coupler_ratio under the harmonic profile.
+    """
+    scene = vals["scene"]
+    used = set(SCENE_USES[scene])
+    if scene == "cycle" and vals["drive"] == "rigid":
+        used -= {"B2", "K2", "m2", "I2"}
+    if scene in ("cycle", "impact") and vals["drive"] == "free":
+        used -= {"B2", "K2"}
+    if scene == "impact" and vals["drive"] == "rigid":
+        used -= {"B2", "K2", "m2", "I2", "l"}
+    if vals["contact_law"] == "hertz":
+        used -= {"k_lin"}
+    if vals["profile"] == "harmonic":
+        used -= {"coupler_ratio"}
+    if "m2" in used and "I2" in used:
+        used -= {"m2"}  # only I2 = m2 l^2/3 (or its override) enters the dynamics
+    used.add("step_factor")
+    return (scene,) + tuple((n, vals[n]) for n in NAMES if n in used)

@@ -1,0 +1,97 @@
+"""Result names, units and codes (MODEL.md §8, §9, §11): one table, used by the API,
+the CLI and the Parquet store.
+
+Kernels write results into a float64 vector at the indices below; `unpack` turns it into
+a dict under the MODEL.md names. Outcomes and statuses are integer codes with one table
+of messages each.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+# ---- outcome codes (MODEL.md §9) ----
+SCRAPED, ESCAPED, TIMEOUT, FAILED = 0, 1, 2, 3
+OUTCOMES = ("scraped", "escaped", "timeout", "failed")
+
+# ---- status codes: 0 ok, the rest name why a run cannot be trusted ----
+ST_OK, ST_PENETRATION, ST_NONFINITE, ST_MAXSTEPS = 0, 1, 2, 3
+STATUS_MESSAGES = (
+    "ok",
+    "failed: penetration larger than half the load's smaller side (contact too soft or step too large)",
+    "failed: non-finite state",
+    "failed: step budget exhausted",
+)
+
+# ---- result vector layout for the cycle scene (MODEL.md §11), name -> (index, unit, meaning) ----
+CYCLE_RESULTS = (
+    ("outcome", "-", "scraped / escaped / timeout / failed"),
+    ("t_exit", "s", "time of the outcome event"),
+    ("peak_force", "N", "max over time of the summed load-fence normal forces"),
+    ("peak_rail_force", "N", "max over time of the summed rail normal forces"),
+    ("freefall_force", "N", "peak force of the same load dropped from H (MODEL.md §7)"),
+    ("overload", "-", "peak_force / freefall_force"),
+    ("safe", "-", "overload <= 1"),
+    ("deflection_ok", "-", "deflection_max <= dalpha_perm"),
+    ("deflection_max", "rad", "max |alpha - alpha_w| over [0, max(t_exit, t_c)]"),
+    ("residual_deflection", "rad", "|alpha(t_c) - alpha_w(t_c)|"),
+    ("alpha_max", "rad", "largest fence angle over [0, max(t_exit, t_c)]"),
+    ("damper_energy", "J", "integral of B2 (dalpha_w - dalpha)^2 over [0, t_c]"),
+    ("contact_energy", "J", "energy lost in the contacts up to t_exit"),
+    ("t_first_contact", "s", "A: first load-fence contact (NaN if none)"),
+    ("contact_time", "s", "B - A for load-fence contacts"),
+    ("n_impacts", "-", "load-fence contact onsets from a state with no load-fence contact"),
+    ("t_S1", "s", "time in stage S1 (one fence contact point, no rail)"),
+    ("t_S2", "s", "time in stage S2 (no contact)"),
+    ("t_S3", "s", "time in stage S3 (two or more fence contact points, no rail)"),
+    ("t_S4", "s", "time in stage S4 (fence and rail)"),
+    ("t_rail", "s", "time with rail contact only"),
+    ("x_exit", "m", "load centroid x at exit"),
+    ("phi_exit", "rad", "load angle at exit"),
+    ("max_penetration", "m", "largest penetration of any contact"),
+    ("n_steps", "-", "integrator steps taken"),
+    ("status", "-", "ok, or failed and why"),
+)
+IMPACT_RESULTS = (
+    ("peak_force", "N", "peak normal force"),
+    ("impulse", "N s", "integral of the normal force over the contact"),
+    ("contact_time", "s", "duration from onset to the first return of N to 0"),
+    ("e_eff", "-", "rebound over approach normal speed, relative to the fence point"),
+    ("max_penetration", "m", "largest penetration"),
+    ("n_steps", "-", "integrator steps taken"),
+    ("status", "-", "ok, or failed and why"),
+)
+FREEFALL_RESULTS = IMPACT_RESULTS
+
+SCENE_RESULTS = {"cycle": CYCLE_RESULTS, "impact": IMPACT_RESULTS, "freefall": FREEFALL_RESULTS}
+
+#: index of each cycle result in the kernel's output vector
+RI = {name: i for i, (name, _, _) in enumerate(CYCLE_RESULTS)}
+#: index of each impact/freefall result in the kernel's output vector
+RJ = {name: i for i, (name, _, _) in enumerate(IMPACT_RESULTS)}
+N_CYCLE_RESULTS = len(CYCLE_RESULTS)
+N_IMPACT_RESULTS = len(IMPACT_RESULTS)
+
+UNITS = {name: unit for rows in SCENE_RESULTS.values() for name, unit, _ in rows}
+_INT_RESULTS = {"n_impacts", "n_steps"}
+_BOOL_RESULTS = {"safe", "deflection_ok"}
+
+
+def unpack(scene: str, vec: np.ndarray) -> dict:
+    """Kernel output vector -> dict under the MODEL.md names."""
+    rows = SCENE_RESULTS[scene]
+    out: dict = {}
+    for i, (name, _, _) in enumerate(rows):
+        x = float(vec[i])
+        if name == "outcome":
+            out[name] = OUTCOMES[int(x)]
+        elif name == "status":
+            out[name] = STATUS_MESSAGES[int(x)]
+        elif name in _INT_RESULTS:
+            out[name] = int(x)
+        elif name in _BOOL_RESULTS:
+            out[name] = bool(x) if math.isfinite(x) else False
+        else:
+            out[name] = x
+    return out
