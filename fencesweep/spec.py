@@ -1,0 +1,480 @@
+"""Sweep specifications: YAML -> a checked, hashable list of scenes (sweeps/README.md).
+
+A spec names one `scene`, a base parameter set (a named `case` and/or `params`), and the
+axes that vary: `grid` (Cartesian product), `zip` (axes that vary together) and `cases`
+(named or explicit parameter sets crossed with the rest). Scene number i is decoded from
+i by mixed radix (cases outermost, then the axes in the order written, the last fastest),
+so no list of scenes is ever held in memory.
+
+Everything wrong in a spec raises `SpecError` (a params.ParameterError) naming the key,
+the value and what is allowed. Values are checked one by one when the spec is read;
+combinations (an invalid start, MODEL.md §1) when every scene is resolved, before any
+run (see sweep.plan).
+"""
+from __future__ import annotations
+
+import difflib
+import hashlib
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Iterator
+
+import numpy as np
+import yaml
+
+from . import params as P
+
+#: derived inputs: name -> (unit, meaning). Psi fixes K2 from B2 and I2 (MODEL.md §3).
+DERIVED_INPUTS = {"Psi": ("-", "relative damping B2 / (2 sqrt(K2 I2)); fixes K2 = (B2 / (2 Psi))^2 / I2")}
+INPUT_NAMES = P.NAMES + tuple(DERIVED_INPUTS)
+
+TOP_KEYS = ("scene", "case", "params", "grid", "zip", "cases", "output", "invalid", "chunk_size",
+            "description")
+AXIS_FORMS = ("linspace", "logspace", "range")
+INVALID_POLICIES = ("error", "skip")
+MAX_AXIS = 10_000_000
+_SIG = 12  # generated axis values are rounded to 12 significant digits (0.1 steps give 0.3)
+
+
+class SpecError(P.ParameterError):
+    """A bad sweep spec: names the key, the value and what is allowed."""
+
+
+def _did_you_mean(word: str, choices) -> str:
+    near = difflib.get_close_matches(str(word), list(choices), n=1)
+    return f"; did you mean {near[0]!r}?" if near else ""
+
+
+def _round(x: float) -> float:
+    return float(f"{x:.{_SIG}g}")
+
+
+# ----------------------------------------------------------------------------------------
+# YAML with duplicate keys rejected (PyYAML silently keeps the last one)
+class _Loader(yaml.SafeLoader):
+    pass
+
+
+def _construct_mapping(loader, node, deep=False):
+    seen = set()
+    for key_node, _ in node.value:
+        key = loader.construct_object(key_node, deep=deep)
+        if key in seen:
+            raise SpecError(f"key {key!r} appears twice in the same mapping "
+                            f"(line {key_node.start_mark.line + 1}); give each key once")
+        seen.add(key)
+    return yaml.SafeLoader.construct_mapping(loader, node, deep=deep)
+
+
+_Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
+
+
+# ----------------------------------------------------------------------------------------
+def check_input(name: str, value: Any, where: str) -> Any:
+    """Check one input value (a §12 parameter or a derived input); return it normalised."""
+    if name not in INPUT_NAMES:
+        raise SpecError(f"{where}: unknown parameter {name!r}{_did_you_mean(name, INPUT_NAMES)} "
+                        f"(parameters of MODEL.md §12: {', '.join(P.NAMES)}; derived: "
+                        f"{', '.join(DERIVED_INPUTS)})")
+    if isinstance(value, (list, dict)):
+        raise SpecError(f"{where} = {value!r}: one value is expected here; axes go under grid or zip")
+    numeric = name in DERIVED_INPUTS or P.BY_NAME[name].kind != "choice"
+    if numeric and isinstance(value, str):
+        try:  # YAML 1.1 reads 4e6 (no dot) as a string
+            value = float(value)
+        except ValueError:
+            pass
+    if name == "Psi":
+        ok = (isinstance(value, (int, float)) and not isinstance(value, bool)
+              and math.isfinite(value) and value > 0)
+        if not ok:
+            raise SpecError(f"{where}: Psi = {value!r} is not allowed: Psi must be a number with 0 < Psi")
+        return float(value)
+    try:
+        return P.check_value(name, value)
+    except P.ParameterError as exc:
+        raise SpecError(f"{where}: {exc}") from None
+
+
+def _form_args(form: str, args: Any, where: str) -> tuple:
+    keys = ("start", "stop", "step") if form == "range" else ("start", "stop", "num")
+    shape = f"{{{form}: [{', '.join(keys)}]}} or {{{form}: {{{': .., '.join(keys)}: ..}}}}"
+    if isinstance(args, dict):
+        bad = [k for k in args if k not in keys]
+        if bad:
+            raise SpecError(f"{where}.{form}: unknown key {bad[0]!r}{_did_you_mean(bad[0], keys)}; "
+                            f"expected {shape}")
+        missing = [k for k in keys if k not in args]
+        if missing:
+            raise SpecError(f"{where}.{form}: missing {missing[0]!r}; expected {shape}")
+        args = [args[k] for k in keys]
+    if not isinstance(args, (list, tuple)) or len(args) != 3:
+        raise SpecError(f"{where}.{form} = {args!r}: expected {shape}")
+    out = []
+    for k, a in zip(keys, args):
+        if isinstance(a, str):
+            try:
+                a = float(a)
+            except ValueError:
+                pass
+        if isinstance(a, bool) or not isinstance(a, (int, float)) or not math.isfinite(a):
+            raise SpecError(f"{where}.{form}: {k} = {a!r} is not a finite number; expected {shape}")
+        out.append(a)
+    return tuple(out)
+
+
+def axis_values(name: str, raw: Any, where: str) -> list:
+    """Expand one axis (a list, or {linspace|logspace|range: ...}) and check every value."""
+    allowed = ("a list of values, {linspace: [start, stop, num]}, {logspace: [start, stop, num]} "
+               "(geometric, both > 0) or {range: [start, stop, step]} (stop included)")
+    if name not in INPUT_NAMES:
+        raise SpecError(f"{where}: unknown parameter {name!r}{_did_you_mean(name, INPUT_NAMES)} "
+                        f"(parameters of MODEL.md §12: {', '.join(P.NAMES)}; derived: "
+                        f"{', '.join(DERIVED_INPUTS)})")
+    is_choice = name not in DERIVED_INPUTS and P.BY_NAME[name].kind == "choice"
+    if isinstance(raw, list):
+        if not raw:
+            raise SpecError(f"{where} = []: the axis is empty; give at least one value ({allowed})")
+        values = raw
+    elif isinstance(raw, dict):
+        if len(raw) != 1:
+            raise SpecError(f"{where} = {raw!r}: expected exactly one of {', '.join(AXIS_FORMS)}, "
+                            f"got keys {', '.join(map(str, raw))}")
+        form, args = next(iter(raw.items()))
+        if form not in AXIS_FORMS:
+            raise SpecError(f"{where}: unknown axis form {form!r}{_did_you_mean(form, AXIS_FORMS)}; "
+                            f"an axis is {allowed}")
+        if is_choice:
+            raise SpecError(f"{where}: {name} takes {P.BY_NAME[name].allowed()}, not a {form}; "
+                            f"give a list, e.g. {list(P.BY_NAME[name].choices)}")
+        a, b, n = _form_args(form, args, where)
+        if form in ("linspace", "logspace"):
+            if isinstance(n, float) and not n.is_integer():
+                raise SpecError(f"{where}.{form}: num = {n!r} must be a whole number >= 1")
+            n = int(n)
+            if n < 1:
+                raise SpecError(f"{where}.{form}: num = {n!r} gives an empty axis; num must be >= 1")
+            if n > MAX_AXIS:
+                raise SpecError(f"{where}.{form}: num = {n!r} is too large (at most {MAX_AXIS})")
+            if form == "linspace":
+                values = [_round(x) for x in np.linspace(a, b, n).tolist()]
+            else:
+                if a <= 0 or b <= 0:
+                    raise SpecError(f"{where}.logspace: start = {a!r}, stop = {b!r}: both must be > 0 "
+                                    f"(the endpoints are values, spaced geometrically, not exponents)")
+                values = [_round(x) for x in np.geomspace(a, b, n).tolist()]
+        else:  # range: start, start + step, ... up to stop included
+            if n == 0:
+                raise SpecError(f"{where}.range: step = 0 is not allowed; step must be non-zero")
+            span = (b - a) / n
+            if span < -1e-9:
+                raise SpecError(f"{where}.range = [{a!r}, {b!r}, {n!r}] is empty: with step {n!r} "
+                                f"stop must be {'>=' if n > 0 else '<='} start")
+            count = int(math.floor(span + 1e-9)) + 1
+            if count > MAX_AXIS:
+                raise SpecError(f"{where}.range gives {count} values, too many (at most {MAX_AXIS})")
+            values = [_round(a + k * n) for k in range(count)]
+    else:
+        raise SpecError(f"{where} = {raw!r} is a single value: an axis is {allowed}; "
+                        f"a fixed value goes under params")
+    out = []
+    for k, v in enumerate(values):
+        out.append(check_input(name, v, f"{where}[{k}]"))
+    if len(set(out)) != len(out):
+        dup = next(v for v in out if out.count(v) > 1)
+        raise SpecError(f"{where}: the value {dup!r} appears twice; every value of an axis must differ")
+    return out
+
+
+@dataclass(frozen=True)
+class Axis:
+    """One dimension of the sweep: a grid axis (one name) or a zip group (several names)."""
+
+    names: tuple
+    values: tuple  # values[k] is a tuple, one value per name
+    where: str
+
+    def __len__(self) -> int:
+        return len(self.values)
+
+
+@dataclass
+class Spec:
+    scene: str
+    case: str | None
+    params: dict
+    axes: list
+    cases: list  # each {"case": name or None, "params": {...}, "where": "cases[k]"}
+    output: str | None = None
+    invalid: str = "error"
+    chunk_size: int | None = None
+    description: str = ""
+    source: str = ""
+    path: str | None = None
+    _shape: tuple = field(default=(), repr=False)
+
+    def __post_init__(self):
+        self._shape = (len(self.cases),) + tuple(len(a) for a in self.axes)
+
+    # ---- size and decoding -----------------------------------------------------------
+    @property
+    def n_scenes(self) -> int:
+        return math.prod(self._shape)
+
+    def shape_text(self) -> str:
+        parts = [f"{len(self.cases)} case{'s' if len(self.cases) != 1 else ''}"] if len(self.cases) > 1 else []
+        for a in self.axes:
+            parts.append(f"{'+'.join(a.names)} {len(a)}")
+        return " x ".join(parts) if parts else "1 scene"
+
+    def decode(self, i: int) -> tuple:
+        """Scene number -> (case index, value index per axis); the last axis varies fastest."""
+        if not 0 <= i < self.n_scenes:
+            raise IndexError(i)
+        idx = []
+        for n in reversed(self._shape):
+            i, r = divmod(i, n)
+            idx.append(r)
+        idx.reverse()
+        return idx[0], tuple(idx[1:])
+
+    def inputs(self, i: int) -> tuple:
+        """Scene number -> (named case or None, explicit inputs incl. derived ones like Psi)."""
+        ci, picks = self.decode(i)
+        entry = self.cases[ci]
+        over = dict(self.params)
+        over.update(entry["params"])
+        for axis, k in zip(self.axes, picks):
+            over.update(zip(axis.names, axis.values[k]))
+        return entry["case"] if entry["case"] is not None else self.case, over
+
+    def describe(self, i: int) -> str:
+        """A short label of scene i for messages: its case and axis values."""
+        ci, picks = self.decode(i)
+        entry = self.cases[ci]
+        bits = []
+        case = entry["case"] if entry["case"] is not None else self.case
+        if len(self.cases) > 1:
+            bits.append(entry["where"] + (f" ({case})" if case else ""))
+        elif case:
+            bits.append(f"case {case}")
+        for axis, k in zip(self.axes, picks):
+            bits += [f"{n} = {v!r}" for n, v in zip(axis.names, axis.values[k])]
+        return f"scene #{i}" + (f" ({', '.join(bits)})" if bits else "")
+
+    def resolve(self, i: int) -> dict:
+        """Scene number -> the resolved parameter set of params.resolve (raises ParameterError)."""
+        case, over = self.inputs(i)
+        return resolve_inputs(self.scene, case, over)
+
+    def iter_resolved(self, start: int = 0, stop: int | None = None) -> Iterator[tuple]:
+        stop = self.n_scenes if stop is None else stop
+        for i in range(start, stop):
+            yield i, self.resolve(i)
+
+    # ---- identity ----------------------------------------------------------------------
+    def normalized(self) -> dict:
+        """The resolved spec: every axis as its explicit list of values (JSON-able)."""
+        return {
+            "scene": self.scene,
+            "case": self.case,
+            "params": dict(self.params),
+            "axes": [{"names": list(a.names), "values": [list(v) for v in a.values], "from": a.where}
+                     for a in self.axes],
+            "cases": [{"case": c["case"], "params": dict(c["params"])} for c in self.cases],
+            "invalid": self.invalid,
+            "chunk_size": self.chunk_size,
+        }
+
+    @property
+    def hash(self) -> str:
+        """sha256 of the resolved spec (not of `output`, `description` or YAML formatting)."""
+        text = json.dumps(self.normalized(), sort_keys=True, separators=(",", ":"), allow_nan=False)
+        return hashlib.sha256(text.encode()).hexdigest()
+
+
+def resolve_inputs(scene: str, case: str | None, over: dict) -> dict:
+    """params.resolve, plus the derived input Psi (MODEL.md §3): K2 = (B2 / (2 Psi))^2 / I2."""
+    if "Psi" not in over:
+        return P.resolve(scene, case, **over)
+    over = dict(over)
+    psi = over.pop("Psi")
+    if "K2" in over:  # caught when the spec is read; kept for direct callers
+        raise SpecError(f"K2 = {over['K2']!r} and Psi = {psi!r} are both set: Psi fixes K2; set one of them")
+    base = P.resolve(scene, case, **over)
+    K2 = _round((base["B2"] / (2.0 * psi)) ** 2 / base["I2"])  # Psi = B2 / (2 sqrt(K2 I2)), MODEL.md §3
+    try:
+        return P.resolve(scene, case, **over, K2=K2)
+    except P.ParameterError as exc:
+        raise P.ParameterError(f"Psi = {psi!r} with B2 = {base['B2']!r}, I2 = {base['I2']:.6g} gives "
+                               f"K2 = {K2:.6g}: {exc}") from None
+
+
+def psi_of(vals: dict) -> float:
+    """Relative damping Psi = B2 / (2 sqrt(K2 I2)) of a resolved set (NaN when K2 I2 = 0)."""
+    k = vals["K2"] * vals["I2"]
+    return vals["B2"] / (2.0 * math.sqrt(k)) if k > 0 else math.nan
+
+
+# ----------------------------------------------------------------------------------------
+def _mapping(raw: Any, where: str, what: str) -> dict:
+    if raw is None:
+        return {}
+    if not isinstance(raw, dict):
+        raise SpecError(f"{where} = {raw!r}: expected a mapping of {what}")
+    return raw
+
+
+def _check_case_name(name: Any, where: str) -> str:
+    if not isinstance(name, str) or name not in P.CASES:
+        raise SpecError(f"{where} = {name!r} is not a named case{_did_you_mean(name, P.CASES)} "
+                        f"(named cases: {', '.join(P.CASES)})")
+    return name
+
+
+def parse(data: Any, source: str = "", path: str | None = None) -> Spec:
+    """A spec from its parsed YAML (a dict). Raises SpecError on anything wrong."""
+    if not isinstance(data, dict):
+        raise SpecError(f"a spec is a mapping with keys {', '.join(TOP_KEYS)}; got {type(data).__name__}")
+    for key in data:
+        if key not in TOP_KEYS:
+            raise SpecError(f"unknown key {key!r} at the top of the spec{_did_you_mean(key, TOP_KEYS)} "
+                            f"(allowed: {', '.join(TOP_KEYS)})")
+    scene = data.get("scene", "cycle")
+    if scene not in P.SCENES:
+        raise SpecError(f"scene = {scene!r} is not allowed{_did_you_mean(scene, P.SCENES)} (scene must be one "
+                        f"of {', '.join(P.SCENES)})")
+    case = data.get("case")
+    if case is not None:
+        case = _check_case_name(case, "case")
+
+    base = {}
+    for name, value in _mapping(data.get("params"), "params", "parameter: value").items():
+        base[name] = check_input(name, value, f"params.{name}")
+
+    axes: list[Axis] = []
+    origin: dict[str, str] = {}  # parameter -> where it varies
+
+    def claim(name: str, where: str):
+        if name in origin:
+            raise SpecError(f"{where}: {name} already varies in {origin[name]}; a parameter can be on one "
+                            f"axis only (use zip to vary parameters together)")
+        if name in base:
+            raise SpecError(f"{where}: {name} is also fixed in params ({name} = {base[name]!r}); "
+                            f"remove one of them")
+        origin[name] = where
+
+    for name, raw in _mapping(data.get("grid"), "grid", "parameter: axis").items():
+        where = f"grid.{name}"
+        values = axis_values(name, raw, where)
+        claim(name, where)
+        axes.append(Axis((name,), tuple((v,) for v in values), where))
+
+    zraw = data.get("zip")
+    groups = [] if zraw is None else ([zraw] if isinstance(zraw, dict) else zraw)
+    if not isinstance(groups, list):
+        raise SpecError(f"zip = {zraw!r}: expected a mapping parameter: axis (or a list of such mappings)")
+    for g, group in enumerate(groups):
+        gwhere = "zip" if isinstance(zraw, dict) else f"zip[{g}]"
+        group = _mapping(group, gwhere, "parameter: axis")
+        if not group:
+            raise SpecError(f"{gwhere} is empty: a zip group needs at least one parameter: axis")
+        cols = {}
+        for name, raw in group.items():
+            where = f"{gwhere}.{name}"
+            cols[name] = axis_values(name, raw, where)
+            claim(name, where)
+        lengths = {n: len(v) for n, v in cols.items()}
+        if len(set(lengths.values())) > 1:
+            raise SpecError(f"{gwhere}: axes that vary together must have the same length; got "
+                            + ", ".join(f"{n}: {k}" for n, k in lengths.items()))
+        names = tuple(cols)
+        values = tuple(zip(*(cols[n] for n in names)))
+        if len(set(values)) != len(values):
+            raise SpecError(f"{gwhere}: two positions repeat the same values; every position must differ")
+        axes.append(Axis(names, values, gwhere))
+
+    craw = data.get("cases")
+    cases = []
+    if craw is None:
+        cases.append({"case": None, "params": {}, "where": "base"})
+    else:
+        if not isinstance(craw, list) or not craw:
+            raise SpecError(f"cases = {craw!r}: expected a non-empty list of named cases "
+                            f"({', '.join(P.CASES)}) or mappings of parameters")
+        for k, entry in enumerate(craw):
+            where = f"cases[{k}]"
+            if isinstance(entry, str):
+                entry = {"case": entry}
+            if not isinstance(entry, dict):
+                raise SpecError(f"{where} = {entry!r}: expected a named case ({', '.join(P.CASES)}) or a "
+                                f"mapping of parameters (optionally with case: NAME)")
+            ecase = entry.get("case")
+            if ecase is not None:
+                ecase = _check_case_name(ecase, f"{where}.case")
+                if case is not None:
+                    raise SpecError(f"{where}.case = {ecase!r} conflicts with the top-level case = {case!r}: "
+                                    f"name the case in one place")
+            eparams = {}
+            for name, value in entry.items():
+                if name == "case":
+                    continue
+                if name in origin:
+                    raise SpecError(f"{where}.{name}: {name} also varies in {origin[name]}; remove one of them")
+                eparams[name] = check_input(name, value, f"{where}.{name}")
+            cases.append({"case": ecase, "params": eparams, "where": where})
+        seen = {}
+        for c in cases:
+            ident = json.dumps([c["case"], c["params"]], sort_keys=True)
+            if ident in seen:
+                raise SpecError(f"{c['where']} repeats {seen[ident]}; every entry of cases must differ")
+            seen[ident] = c["where"]
+
+    # K2 and Psi both given for the same scenes
+    for c in cases:
+        where_of = {n: f"params.{n}" for n in base}
+        where_of.update({n: f"{c['where']}.{n}" for n in c["params"]})
+        where_of.update(origin)
+        if "K2" in where_of and "Psi" in where_of:
+            raise SpecError(f"K2 (in {where_of['K2']}) and Psi (in {where_of['Psi']}) are both set: "
+                            f"Psi fixes K2 = (B2 / (2 Psi))^2 / I2; set one of them")
+
+    output = data.get("output")
+    if output is not None and (not isinstance(output, str) or not output.endswith(".parquet")):
+        raise SpecError(f"output = {output!r}: expected a path ending in .parquet")
+    invalid = data.get("invalid", "error")
+    if invalid not in INVALID_POLICIES:
+        raise SpecError(f"invalid = {invalid!r} is not allowed{_did_you_mean(invalid, INVALID_POLICIES)} "
+                        f"(one of {', '.join(INVALID_POLICIES)}; skip drops the scenes that params.resolve "
+                        f"rejects as a combination, e.g. an invalid start, and reports them)")
+    chunk = data.get("chunk_size")
+    if chunk is not None and (isinstance(chunk, bool) or not isinstance(chunk, int) or chunk < 1):
+        raise SpecError(f"chunk_size = {chunk!r}: expected a whole number >= 1 (model runs per chunk)")
+    desc = data.get("description") or ""
+    if not isinstance(desc, str):
+        raise SpecError(f"description = {desc!r}: expected text")
+    return Spec(scene=scene, case=case, params=base, axes=axes, cases=cases, output=output,
+                invalid=invalid, chunk_size=chunk, description=desc, source=source, path=path)
+
+
+def loads(text: str, path: str | None = None) -> Spec:
+    """A spec from YAML text."""
+    try:
+        data = yaml.load(text, Loader=_Loader)
+    except SpecError:
+        raise
+    except yaml.YAMLError as exc:
+        raise SpecError(f"{path or 'spec'}: not valid YAML: {exc}") from None
+    return parse(data, source=text, path=path)
+
+
+def load(path: str | Path) -> Spec:
+    """A spec from a YAML file."""
+    p = Path(path)
+    try:
+        text = p.read_text()
+    except OSError as exc:
+        raise SpecError(f"cannot read spec {str(path)!r}: {exc.strerror}") from None
+    return loads(text, path=str(path))

@@ -1,0 +1,309 @@
+"""Parquet out and in: sweep tables with their provenance, resumable chunks, trajectories.
+
+A sweep table is one Parquet file, one row per scene: `scene`, `case`, every parameter of
+MODEL.md §12 (step_factor included), the derived input `Psi`, then every result of the
+scene (MODEL.md §11 for `cycle`, §8 for `impact` and `freefall`) under its MODEL.md name.
+Each column carries `unit`, `doc` and `role` (label / parameter / result) in its field
+metadata; the schema metadata records how the file was made (`fencesweep.spec`, its
+`fencesweep.spec_hash`, `fencesweep.versions`, ...; every value JSON-encoded). Nothing in it depends on the number of
+workers or the time of day, so a sweep writes the same bytes whatever `--jobs` is.
+
+Every file is written atomically: to a temporary file in the same directory, fsync'd, then
+`os.replace`d over the target, so a killed process leaves either the old file or the new.
+"""
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+import math
+import os
+import platform
+from pathlib import Path
+from typing import Any, Iterable
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from . import params as P
+from . import results as R
+
+COMPRESSION = "zstd"
+META_PREFIX = "fencesweep."
+#: label columns before the parameters
+LABELS = (("scene", "-", "scene: cycle / impact / freefall (MODEL.md §8)"),
+          ("case", "-", "named case of MODEL.md §12 the scene starts from (null: none)"))
+DERIVED = (("Psi", "-", "relative damping B2 / (2 sqrt(K2 I2)) (MODEL.md §3; NaN when K2 I2 = 0)"),)
+
+_INT = getattr(R, "_INT_RESULTS", {"n_impacts", "n_steps"})
+_BOOL = getattr(R, "_BOOL_RESULTS", {"safe", "deflection_ok"})
+_STR = {"outcome", "status"}
+
+
+# ---------------------------------------------------------------------------- provenance
+def source_hash() -> str:
+    """sha256 over the package's Python sources: a changed engine never reuses old chunks."""
+    h = hashlib.sha256()
+    root = Path(__file__).resolve().parent
+    for f in sorted(root.rglob("*.py")):
+        h.update(f.relative_to(root).as_posix().encode() + b"\0" + f.read_bytes() + b"\0")
+    return h.hexdigest()
+
+
+def versions() -> dict:
+    """Versions that a table records (fencesweep, its source hash, numba, numpy, pyarrow, python)."""
+    from . import __version__
+
+    try:
+        import numba
+
+        numba_version = numba.__version__
+    except ImportError:  # pragma: no cover
+        numba_version = None
+    return {"fencesweep": __version__, "source_hash": source_hash(), "numba": numba_version,
+            "numpy": np.__version__, "pyarrow": pa.__version__, "python": platform.python_version()}
+
+
+def _meta_bytes(meta: dict) -> dict:
+    out = {}
+    for k, v in meta.items():  # every value is JSON (strings too), so reading is uniform
+        text = json.dumps(v, sort_keys=True, default=_json_default)
+        out[(META_PREFIX + k).encode()] = text.encode()
+    return out
+
+
+def _json_default(x):
+    if isinstance(x, np.generic):
+        return x.item()
+    raise TypeError(f"not JSON serialisable: {type(x).__name__}")
+
+
+# ---------------------------------------------------------------------------- schema
+def _field(name: str, typ: pa.DataType, unit: str, doc: str, role: str) -> pa.Field:
+    return pa.field(name, typ, nullable=True,
+                    metadata={b"unit": unit.encode(), b"doc": doc.encode(), b"role": role.encode()})
+
+
+def result_type(name: str) -> pa.DataType:
+    if name in _STR:
+        return pa.string()
+    if name in _INT:
+        return pa.int64()
+    if name in _BOOL:
+        return pa.bool_()
+    return pa.float64()
+
+
+def result_schema(scene: str) -> pa.Schema:
+    return pa.schema([_field(n, result_type(n), u, d, "result") for n, u, d in R.SCENE_RESULTS[scene]])
+
+
+def param_columns() -> list:
+    """(name, arrow type) of the label, parameter and derived columns, in table order."""
+    cols = [(n, pa.string()) for n, _, _ in LABELS]
+    cols += [(p.name, pa.string() if p.kind == "choice" else pa.float64()) for p in P.TABLE]
+    cols += [(n, pa.float64()) for n, _, _ in DERIVED]
+    return cols
+
+
+def table_schema(scene: str, meta: dict | None = None) -> pa.Schema:
+    """The schema of a sweep table of `scene`: labels, parameters, Psi, results; units in metadata."""
+    fields = [_field(n, pa.string(), u, d, "label") for n, u, d in LABELS]
+    fields += [_field(p.name, pa.string() if p.kind == "choice" else pa.float64(), p.unit, p.doc, "parameter")
+               for p in P.TABLE]
+    fields += [_field(n, pa.float64(), u, d, "parameter") for n, u, d in DERIVED]
+    fields += list(result_schema(scene))
+    names = [f.name for f in fields]
+    assert len(set(names)) == len(names), "a result shares a parameter's name"
+    return pa.schema(fields, metadata=_meta_bytes(meta) if meta else None)
+
+
+def failed_result(scene: str, reason: str) -> dict:
+    """The row of a run that raised instead of returning: outcome failed, NaN numbers."""
+    out = {}
+    for name, _, _ in R.SCENE_RESULTS[scene]:
+        if name == "outcome":
+            out[name] = "failed"
+        elif name == "status":
+            out[name] = reason
+        elif name in _INT:
+            out[name] = 0
+        elif name in _BOOL:
+            out[name] = False
+        else:
+            out[name] = math.nan
+    return out
+
+
+def results_table(scene: str, rows: list, model_ids: Iterable[int] | None = None) -> pa.Table:
+    """Result dicts (exactly the keys of results.SCENE_RESULTS[scene]) -> an Arrow table."""
+    schema = result_schema(scene)
+    names = schema.names
+    for k, row in enumerate(rows):
+        if set(row) != set(names):
+            missing = sorted(set(names) - set(row))
+            extra = sorted(set(row) - set(names))
+            raise ValueError(f"result {k} of scene {scene!r} has missing keys {missing} / extra keys {extra}")
+    arrays = [pa.array([row[n] for row in rows], type=schema.field(n).type) for n in names]
+    table = pa.Table.from_arrays(arrays, schema=schema)
+    if model_ids is not None:
+        table = table.append_column("_model", pa.array(list(model_ids), type=pa.int64()))
+    return table
+
+
+# ---------------------------------------------------------------------------- atomic files
+@contextlib.contextmanager
+def atomic_path(path: str | Path):
+    """Yield a temporary path beside `path`; on success fsync it and os.replace it onto `path`."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    try:
+        yield tmp
+        with open(tmp, "rb") as fh:
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+
+
+def write_table_atomic(table: pa.Table, path: str | Path) -> None:
+    with atomic_path(path) as tmp:
+        pq.write_table(table, tmp, compression=COMPRESSION)
+
+
+# ---------------------------------------------------------------------------- chunks
+def write_chunk(path: str | Path, scene: str, model_ids: list, rows: list, meta: dict) -> None:
+    """One finished chunk: the results of its model runs, with their model numbers."""
+    table = results_table(scene, rows, model_ids)
+    table = table.replace_schema_metadata(_meta_bytes(meta))
+    write_table_atomic(table, path)
+
+
+def chunk_complete(path: str | Path, n_rows: int) -> bool:
+    """True if `path` is a readable chunk of `n_rows` runs (anything else is recomputed)."""
+    try:
+        return pq.read_metadata(path).num_rows == n_rows
+    except (OSError, pa.ArrowInvalid):
+        return False
+
+
+def read_chunk(path: str | Path) -> dict:
+    """A chunk as {column: numpy array} (strings as object arrays), `_model` included."""
+    table = pq.read_table(path)
+    return {name: table.column(name).to_numpy(zero_copy_only=False) for name in table.column_names}
+
+
+class TableWriter:
+    """Write a sweep table block by block into one Parquet file, atomically at close."""
+
+    def __init__(self, path: str | Path, schema: pa.Schema):
+        self.path = Path(path)
+        self.schema = schema
+        self._cm = atomic_path(self.path)
+        self._tmp = self._cm.__enter__()
+        self._writer = pq.ParquetWriter(self._tmp, schema, compression=COMPRESSION)
+        self.n_rows = 0
+
+    def write(self, columns: dict) -> None:
+        arrays = [pa.array(columns[f.name], type=f.type) for f in self.schema]
+        self._writer.write_table(pa.Table.from_arrays(arrays, schema=self.schema))
+        self.n_rows += len(arrays[0]) if arrays else 0
+
+    def close(self) -> None:
+        self._writer.close()
+        self._cm.__exit__(None, None, None)
+
+    def abort(self) -> None:
+        with contextlib.suppress(Exception):
+            self._writer.close()
+        with contextlib.suppress(Exception):
+            self._cm.__exit__(RuntimeError, RuntimeError("aborted"), None)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, typ, exc, tb):
+        if typ is None:
+            self.close()
+        else:
+            self.abort()
+        return False
+
+
+# ---------------------------------------------------------------------------- reading
+def read_metadata(path: str | Path) -> dict:
+    """The provenance of a table: {'spec': ..., 'spec_hash': ..., 'versions': ..., ...}."""
+    raw = pq.read_schema(path).metadata or {}
+    out = {}
+    for k, v in raw.items():
+        k = k.decode()
+        if not k.startswith(META_PREFIX):
+            continue
+        out[k[len(META_PREFIX):]] = json.loads(v.decode())
+    return out
+
+
+def units(path: str | Path) -> dict:
+    """{column: unit} from the field metadata of a table."""
+    schema = pq.read_schema(path)
+    return {f.name: (f.metadata or {}).get(b"unit", b"").decode() for f in schema}
+
+
+def read_table(path: str | Path):
+    """A sweep table as a pandas DataFrame; df.attrs holds 'units' and 'fencesweep' (provenance)."""
+    import pandas as pd
+
+    df = pd.read_parquet(path)
+    df.attrs["units"] = units(path)
+    df.attrs["fencesweep"] = read_metadata(path)
+    return df
+
+
+# ---------------------------------------------------------------------------- trajectories
+def write_trajectory(traj_df, path: str | Path, vals: dict, results: dict) -> None:
+    """Write one run's time series to Parquet, atomically, with its parameters and results.
+
+    Schema metadata: `fencesweep.params` and `fencesweep.results` (JSON) and
+    `fencesweep.versions`. Column units come from `traj_df.attrs['units']` when the engine
+    gives them.
+    """
+    table = pa.Table.from_pandas(traj_df, preserve_index=False)
+    col_units = dict(getattr(traj_df, "attrs", {}).get("units", {}) or {})
+    if col_units:
+        fields = []
+        for f in table.schema:
+            md = dict(f.metadata or {})
+            if f.name in col_units:
+                md[b"unit"] = str(col_units[f.name]).encode()
+            fields.append(f.with_metadata(md))
+        table = table.cast(pa.schema(fields, metadata=table.schema.metadata))
+    meta = dict(table.schema.metadata or {})
+    meta.update(_meta_bytes({"params": _plain(vals), "results": _plain(results), "versions": versions()}))
+    table = table.replace_schema_metadata(meta)
+    write_table_atomic(table, path)
+
+
+def _plain(d: dict) -> dict:
+    out = {}
+    for k, v in d.items():
+        if isinstance(v, np.generic):
+            v = v.item()
+        if isinstance(v, float) and not math.isfinite(v):
+            v = None if math.isnan(v) else ("inf" if v > 0 else "-inf")
+        out[k] = v
+    return out
+
+
+def read_trajectory(path: str | Path):
+    """A trajectory written by write_trajectory; df.attrs has 'params', 'results', 'units'."""
+    import pandas as pd
+
+    df = pd.read_parquet(path)
+    meta = read_metadata(path)
+    df.attrs.update({k: meta.get(k) for k in ("params", "results", "versions")})
+    df.attrs["units"] = {k: v for k, v in units(path).items() if v}
+    return df
+

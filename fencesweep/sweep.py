@@ -1,0 +1,488 @@
+"""Sweeps: spec -> scenes -> distinct model runs -> parallel chunks -> one Parquet table.
+
+1. plan: every scene of the spec is resolved (params.resolve) up front, so any bad
+   combination is reported before work starts, and mapped to its model run by
+   params.model_key: scenes that differ only in parameters their model does not use
+   (B2, K2, m2 under a rigid drive, ...) share one run (MODEL.md §8).
+2. The distinct runs, numbered in order of first appearance, are cut into chunks of
+   `chunk_size` runs (a function of the spec only, never of --jobs or timing). A chunk's
+   file name carries a digest of the spec hash, the package's source hash and the model
+   keys of its runs, so a changed spec or engine never reuses a stale chunk.
+3. Pending chunks run in parallel through joblib (loky locally, or Dask); each finished
+   chunk is written atomically into the work directory `OUT.work/` beside the output. A
+   killed sweep, rerun, computes only the chunks that are missing.
+4. The table is assembled block by block from the chunks (rows in scene order) into one
+   Parquet file, atomically; then the work directory is removed.
+
+Results depend only on each run's parameters, and the assembly only on the plan: the
+table is the same, bit for bit, whatever --jobs or backend.
+"""
+from __future__ import annotations
+
+import argparse
+import contextlib
+import hashlib
+import json
+import math
+import shutil
+import sys
+import time
+from collections import OrderedDict
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from . import params as P
+from . import spec as S
+from . import store
+
+#: chunk size rule: about CHUNK_TARGET chunks, each of CHUNK_MIN..CHUNK_MAX model runs.
+#: At 1-3 ms a run a chunk takes >= 30 ms, against ~0.5 ms of dispatch (benchmarks/sweep_dispatch.py).
+CHUNK_MIN, CHUNK_MAX, CHUNK_TARGET = 32, 1024, 64
+ASSEMBLY_BLOCK = 65_536  # rows per Parquet row group of the final table
+CHUNK_CACHE = 8  # chunks held in memory while assembling
+_CHOICES = tuple(p.name for p in P.TABLE if p.kind == "choice")
+
+
+def auto_chunk_size(n_models: int) -> int:
+    return max(CHUNK_MIN, min(CHUNK_MAX, math.ceil(n_models / CHUNK_TARGET)))
+
+
+# ------------------------------------------------------------------------------ plan
+@dataclass
+class Plan:
+    """Scenes of a spec mapped to distinct model runs, cut into chunks."""
+
+    spec: S.Spec
+    row_model: np.ndarray  # model run of each scene; -1 for a skipped scene
+    first_row: np.ndarray  # the first scene of each model run
+    digests: bytes  # 16 bytes per model run: blake2b of its model key
+    chunk_size: int
+    variants: dict  # (scene, drive, contact_law, profile) -> first model run with it
+    skipped: int = 0
+    skipped_examples: list = field(default_factory=list)
+    salt: str = ""
+
+    @property
+    def n_scenes(self) -> int:
+        return len(self.row_model)
+
+    @property
+    def n_models(self) -> int:
+        return len(self.first_row)
+
+    @property
+    def n_chunks(self) -> int:
+        return math.ceil(self.n_models / self.chunk_size)
+
+    def chunk_models(self, c: int) -> range:
+        return range(c * self.chunk_size, min(self.n_models, (c + 1) * self.chunk_size))
+
+    def chunk_name(self, c: int) -> str:
+        m = self.chunk_models(c)
+        h = hashlib.sha256(f"{self.salt}:{c}:".encode())
+        h.update(self.digests[16 * m.start:16 * m.stop])
+        return f"chunk-{c:06d}-{h.hexdigest()[:16]}.parquet"
+
+    def chunk_rows(self) -> np.ndarray:
+        """Number of scenes each chunk fills."""
+        valid = self.row_model[self.row_model >= 0]
+        return np.bincount(valid // self.chunk_size, minlength=self.n_chunks)
+
+    def model_vals(self, m: int) -> dict:
+        return self.spec.resolve(int(self.first_row[m]))
+
+
+def make_plan(spec: S.Spec, progress: bool = False) -> Plan:
+    """Resolve every scene (raising SpecError on the first bad one) and deduplicate the runs."""
+    n = spec.n_scenes
+    row_model = np.empty(n, dtype=np.int64)
+    index: dict = {}
+    first_row: list = []
+    digests = bytearray()
+    variants: dict = {}
+    skipped, examples = 0, []
+    bar = _bar(n, "checking", progress and n > 20_000)
+    for i in range(n):
+        try:
+            vals = spec.resolve(i)
+        except P.ParameterError as exc:
+            if spec.invalid == "skip":
+                row_model[i] = -1
+                skipped += 1
+                if len(examples) < 3:
+                    examples.append(f"{spec.describe(i)}: {exc}")
+                continue
+            bar.close()
+            raise S.SpecError(f"{spec.describe(i)}: {exc}") from None
+        d = hashlib.blake2b(repr(P.model_key(vals)).encode(), digest_size=16).digest()
+        m = index.get(d)
+        if m is None:
+            m = index[d] = len(first_row)
+            first_row.append(i)
+            digests += d
+            variants.setdefault((spec.scene,) + tuple(vals[c] for c in _CHOICES), m)
+        row_model[i] = m
+        if (i & 4095) == 4095:
+            bar.update(4096)
+    bar.close()
+    if not first_row:
+        raise S.SpecError(f"every one of the {n} scenes is invalid (invalid: skip); e.g. {examples[0]}")
+    chunk = spec.chunk_size or auto_chunk_size(len(first_row))
+    v = store.versions()
+    salt = hashlib.sha256(f"{spec.hash}:{v['fencesweep']}:{v['source_hash']}".encode()).hexdigest()
+    return Plan(spec, row_model, np.asarray(first_row, dtype=np.int64), bytes(digests), chunk, variants,
+                skipped, examples, salt)
+
+
+def unused_axes(spec: S.Spec) -> list:
+    """Axes over parameters that the scene's model never uses (every value gives the same run)."""
+    uses = P.SCENE_USES[spec.scene] | {"step_factor", "Psi"}
+    return [f"{a.where} ({n})" for a in spec.axes for n in a.names if n not in uses]
+
+
+# ------------------------------------------------------------------------------ running
+def _engine() -> Callable:
+    from . import api
+
+    return api.simulate_resolved
+
+
+def run_models(scene: str, vals_list: list, simulate: Callable | None = None) -> list:
+    """Run each parameter set; a run that raises becomes a row with outcome failed and the reason."""
+    fn = simulate or _engine()
+    rows = []
+    for vals in vals_list:
+        try:
+            res, _ = fn(vals, trajectory=False)
+        except Exception as exc:  # recorded, never silent: status names the exception
+            res = store.failed_result(scene, f"failed: exception {type(exc).__name__}: {exc}")
+        rows.append(res)
+    return rows
+
+
+def _run_chunk(c: int, scene: str, model_ids: list, vals_list: list, simulate: Callable | None):
+    return c, model_ids, run_models(scene, vals_list, simulate)
+
+
+def work_root(out: Path) -> Path:
+    return out.with_name(out.name + ".work")
+
+
+def _bar(total: int, desc: str, enabled: bool, initial: int = 0):
+    from tqdm.auto import tqdm
+
+    return tqdm(total=total, initial=initial, desc=desc, unit="scene", disable=(None if enabled else True),
+                file=sys.stderr, dynamic_ncols=True, smoothing=0.05)
+
+
+@contextlib.contextmanager
+def _backend(backend: str, scheduler: str | None):
+    """joblib's loky backend, or its dask backend on a running scheduler."""
+    if backend == "loky":
+        yield
+        return
+    try:
+        import joblib
+        from dask.distributed import Client
+    except ImportError as exc:
+        from .cli import UsageError
+
+        raise UsageError(f"--backend dask needs dask.distributed ({exc}); install it with "
+                         f"pip install 'fencesweep[dask]'") from None
+    try:
+        client = Client(scheduler, timeout="20s")
+    except (OSError, TimeoutError) as exc:
+        from .cli import UsageError
+
+        raise UsageError(f"--scheduler {scheduler!r}: cannot reach the Dask scheduler ({exc})") from None
+    with client, joblib.parallel_config(backend="dask"):
+        yield
+
+
+def warm_up(plan: Plan, simulate: Callable | None = None) -> float:
+    """Run one model of each variant (scene, drive, law, profile) in this process.
+
+    This compiles the Numba kernels once here; with on-disk caching the workers then
+    load them instead of compiling each. It also stops a sweep whose engine fails at
+    once, before anything is dispatched. Returns the seconds it took.
+    """
+    fn = simulate or _engine()
+    t0 = time.perf_counter()
+    for m in plan.variants.values():
+        vals = plan.model_vals(m)
+        try:
+            fn(vals, trajectory=False)
+        except Exception as exc:
+            raise RuntimeError(f"the engine failed on {plan.spec.describe(int(plan.first_row[m]))}: "
+                               f"{type(exc).__name__}: {exc}") from exc
+    return time.perf_counter() - t0
+
+
+def time_sample(plan: Plan, simulate: Callable | None = None, budget: float = 2.0, most: int = 64) -> tuple:
+    """Seconds per model run, timed on runs spread evenly over the sweep (after warm_up)."""
+    fn = simulate or _engine()
+    ids = np.unique(np.linspace(0, plan.n_models - 1, min(most, plan.n_models)).round().astype(int))
+    t0 = time.perf_counter()
+    k = 0
+    for m in ids:
+        fn(plan.model_vals(int(m)), trajectory=False)
+        k += 1
+        if time.perf_counter() - t0 > budget:
+            break
+    return (time.perf_counter() - t0) / k, k
+
+
+def chunks_done(plan: Plan, work: Path) -> list:
+    """Chunks whose file is in `work` and complete (the others are computed)."""
+    if not work.is_dir():
+        return []
+    return [c for c in range(plan.n_chunks)
+            if store.chunk_complete(work / plan.chunk_name(c), len(plan.chunk_models(c)))]
+
+
+def default_output(spec: S.Spec) -> Path:
+    if spec.output:
+        return Path(spec.output)
+    stem = Path(spec.path).stem if spec.path else "sweep"
+    return Path(f"{stem}.parquet")
+
+
+@dataclass
+class Outcome:
+    out: Path
+    n_scenes: int
+    n_models: int
+    n_chunks: int
+    computed: int  # chunks computed by this call
+    reused: int  # chunks found in the work directory
+    seconds: float
+    failed_runs: int = 0
+
+
+def run_sweep(spec: S.Spec | str | Path, out: str | Path | None = None, jobs: int | None = None,
+              resume: bool = True, backend: str = "loky", scheduler: str | None = None,
+              progress: bool = False, simulate: Callable | None = None, plan: Plan | None = None,
+              log: Callable[[str], None] | None = None) -> Outcome:
+    """Run a sweep and write its table. `simulate(vals, trajectory=False) -> (results, None)`
+    defaults to fencesweep.api.simulate_resolved (tests pass a fake)."""
+    import joblib
+
+    t0 = time.perf_counter()
+    log = log or (lambda msg: None)
+    if not isinstance(spec, S.Spec):
+        spec = S.load(spec)
+    plan = plan or make_plan(spec, progress=progress)
+    out = Path(out) if out is not None else default_output(spec)
+    if jobs is None:
+        jobs = joblib.cpu_count()
+    root = work_root(out)
+    work = root / plan.salt[:16]
+    if root.exists():
+        for old in root.iterdir():
+            if not resume or old.name != work.name:
+                log(f"removing {old} ({'--no-resume' if not resume else 'chunks of another spec or engine'})")
+                shutil.rmtree(old) if old.is_dir() else old.unlink()
+    work.mkdir(parents=True, exist_ok=True)
+    (work / "spec.json").write_text(json.dumps({"spec": spec.normalized(), "spec_hash": spec.hash,
+                                                "salt": plan.salt}, indent=1))
+    rows_of = plan.chunk_rows()
+    done = chunks_done(plan, work)
+    pending = sorted(set(range(plan.n_chunks)) - set(done))
+    if done:
+        log(f"resuming: {len(done)} of {plan.n_chunks} chunks already in {work}")
+    meta_chunk = {"salt": plan.salt}
+    if pending:
+        warm_up(plan, simulate)
+        bar = _bar(plan.n_scenes - plan.skipped, Path(spec.path).stem if spec.path else "sweep", progress,
+                   initial=int(rows_of[done].sum()) if done else 0)
+
+        def tasks():
+            for c in pending:
+                ids = list(plan.chunk_models(c))
+                yield joblib.delayed(_run_chunk)(c, spec.scene, ids, [plan.model_vals(m) for m in ids], simulate)
+
+        try:
+            with _backend(backend, scheduler):
+                n_jobs = jobs if backend == "loky" else -1
+                par = joblib.Parallel(n_jobs=n_jobs, return_as="generator_unordered", batch_size=1,
+                                      pre_dispatch="2*n_jobs")
+                for c, ids, rows in par(tasks()):
+                    store.write_chunk(work / plan.chunk_name(c), spec.scene, ids, rows,
+                                      dict(meta_chunk, chunk=c))
+                    bar.update(int(rows_of[c]))
+        finally:
+            bar.close()
+    failed = assemble(plan, work, out)
+    shutil.rmtree(root)
+    return Outcome(out, plan.n_scenes - plan.skipped, plan.n_models, plan.n_chunks, len(pending), len(done),
+                   time.perf_counter() - t0, failed)
+
+
+def table_meta(plan: Plan) -> dict:
+    spec = plan.spec
+    return {"spec": spec.normalized(), "spec_hash": spec.hash, "spec_source": spec.source,
+            "versions": store.versions(), "scene": spec.scene,
+            "counts": {"scenes": plan.n_scenes - plan.skipped, "skipped": plan.skipped,
+                       "model_runs": plan.n_models, "chunk_size": plan.chunk_size}}
+
+
+def assemble(plan: Plan, work: Path, out: Path) -> int:
+    """Write the table: rows in scene order, parameters re-resolved, results from the chunks.
+
+    Memory holds one block of rows and at most CHUNK_CACHE chunks. Returns the number of
+    rows whose run raised (status 'failed: exception ...').
+    """
+    spec, size = plan.spec, plan.chunk_size
+    schema = store.table_schema(spec.scene, table_meta(plan))
+    pcols = store.param_columns()
+    rcols = [(f.name, f.type) for f in store.result_schema(spec.scene)]
+    np_type = {"double": np.float64, "int64": np.int64, "bool": np.bool_}
+    cache: OrderedDict = OrderedDict()
+    failed = 0
+
+    def chunk(c: int) -> dict:
+        if c in cache:
+            cache.move_to_end(c)
+            return cache[c]
+        data = store.read_chunk(work / plan.chunk_name(c))
+        cache[c] = data
+        if len(cache) > CHUNK_CACHE:
+            cache.popitem(last=False)
+        return data
+
+    with store.TableWriter(out, schema) as writer:
+        for start in range(0, plan.n_scenes, ASSEMBLY_BLOCK):
+            stop = min(plan.n_scenes, start + ASSEMBLY_BLOCK)
+            rows = np.nonzero(plan.row_model[start:stop] >= 0)[0] + start
+            if len(rows) == 0:
+                continue
+            cols = {name: [] for name, _ in pcols}
+            for i in rows:
+                vals = spec.resolve(int(i))
+                vals["Psi"] = S.psi_of(vals)
+                for name, _ in pcols:
+                    cols[name].append(vals[name])
+            models = plan.row_model[rows]
+            which = models // size
+            for name, typ in rcols:
+                cols[name] = np.empty(len(rows), dtype=np_type.get(str(typ), object))
+            for c in np.unique(which):
+                sel = which == c
+                local = models[sel] - c * size
+                data = chunk(int(c))
+                if not np.array_equal(data["_model"][local], models[sel]):
+                    raise RuntimeError(f"chunk {c} in {work} does not hold the runs it should; "
+                                       f"rerun with --no-resume")
+                for name, _ in rcols:
+                    cols[name][sel] = data[name][local]
+            failed += int(sum(1 for s in cols["status"] if str(s).startswith("failed: exception")))
+            writer.write(cols)
+    return failed
+
+
+# ------------------------------------------------------------------------------ dry run
+def describe_plan(plan: Plan, out: Path) -> list:
+    spec = plan.spec
+    lines = [f"{spec.path or 'spec'}: scene {spec.scene}, {plan.n_scenes - plan.skipped} scenes "
+             f"({spec.shape_text()}) -> {out}"]
+    if plan.skipped:
+        lines.append(f"  skipped (invalid: skip): {plan.skipped} scenes, e.g. {plan.skipped_examples[0]}")
+    saved = plan.n_scenes - plan.skipped - plan.n_models
+    lines.append(f"  distinct model runs: {plan.n_models}" + (f" ({saved} scenes share a run)" if saved else ""))
+    lines.append(f"  chunks: {plan.n_chunks} of up to {plan.chunk_size} runs")
+    for axis in unused_axes(spec):
+        lines.append(f"  note: {axis} is not used by scene {spec.scene}; its values all give the same run")
+    return lines
+
+
+# ------------------------------------------------------------------------------ CLI
+def add_grid_parser(sub) -> argparse.ArgumentParser:
+    g = sub.add_parser(
+        "grid", help="run a parameter sweep from a YAML spec into one Parquet table",
+        description="Run every scene of a sweep spec (sweeps/README.md) on all cores and write one "
+                    "Parquet table, one row per scene. A killed sweep, rerun, computes only what is missing.")
+    g.add_argument("spec", metavar="SPEC.yaml", help="the sweep spec (see sweeps/README.md)")
+    g.add_argument("--out", metavar="PATH.parquet", help="output table (default: the spec's output)")
+    g.add_argument("--jobs", type=int, default=None, metavar="N", help="worker processes (default: all cores)")
+    g.add_argument("--dry-run", action="store_true",
+                   help="print the scene count, model runs and an estimated time; run nothing else")
+    g.add_argument("--no-resume", action="store_true", help="discard chunks of an interrupted run")
+    g.add_argument("--backend", choices=("loky", "dask"), default="loky",
+                   help="loky: processes on this machine; dask: a Dask cluster (needs --scheduler)")
+    g.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler, e.g. tcp://HOST:8786")
+    g.add_argument("--quiet", action="store_true", help="no progress bar and no summary")
+    g.set_defaults(func=cmd_grid)
+    return g
+
+
+def cmd_grid(args: argparse.Namespace) -> int:
+    import joblib
+
+    from .cli import UsageError
+
+    if args.out is not None and not args.out.endswith(".parquet"):
+        raise UsageError(f"--out {args.out!r} must end with .parquet")
+    if args.jobs is not None and args.jobs < 1:
+        raise UsageError(f"--jobs {args.jobs} is not allowed: --jobs must be >= 1")
+    if args.backend == "dask" and not args.scheduler:
+        raise UsageError("--backend dask needs --scheduler ADDRESS (e.g. tcp://HOST:8786)")
+    if args.scheduler and args.backend != "dask":
+        raise UsageError("--scheduler is only used with --backend dask")
+    say = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
+    spec = S.load(args.spec)
+    plan = make_plan(spec, progress=not args.quiet)
+    out = Path(args.out) if args.out else default_output(spec)
+    jobs = args.jobs or joblib.cpu_count()
+    if args.dry_run:
+        for line in describe_plan(plan, out):
+            print(line)
+        work = work_root(out) / plan.salt[:16]
+        done = [] if args.no_resume else chunks_done(plan, work)
+        n_pending = plan.n_models - sum(len(plan.chunk_models(c)) for c in done)
+        if done:
+            print(f"  already done: {len(done)} chunks in {work}")
+        try:
+            t_warm = warm_up(plan)
+            per_run, k = time_sample(plan)
+        except RuntimeError as exc:
+            print(f"  estimated time: unavailable ({exc})")
+            return 0
+        workers = jobs if args.backend == "loky" else None
+        est = per_run * n_pending / (workers or 1)
+        print(f"  engine: warm-up {t_warm:.2f} s; {per_run * 1e3:.3g} ms per run (timed on {k} runs)")
+        if workers:
+            print(f"  estimated time on {workers} job{'s' if workers > 1 else ''}: {_human(est)} "
+                  f"for {n_pending} runs")
+        else:
+            print(f"  estimated time: {_human(est)} of work for {n_pending} runs, divided by the cluster's workers")
+        return 0
+    for line in describe_plan(plan, out)[1:]:
+        if "note:" in line or "skipped" in line:
+            say(line.strip())
+    try:
+        res = run_sweep(spec, out, jobs=jobs, resume=not args.no_resume, backend=args.backend,
+                        scheduler=args.scheduler, progress=not args.quiet, plan=plan, log=say)
+    except KeyboardInterrupt:
+        work = work_root(out) / plan.salt[:16]
+        n = len(list(work.glob("chunk-*.parquet"))) if work.exists() else 0
+        print(f"fencesweep: interrupted; {n} of {plan.n_chunks} chunks are saved in {work}; "
+              f"run the same command again to finish", file=sys.stderr)
+        return 130
+    rate = res.n_scenes / res.seconds if res.seconds > 0 else math.inf
+    say(f"wrote {res.out}: {res.n_scenes} scenes ({res.n_models} model runs; {res.computed} chunks computed, "
+        f"{res.reused} reused) in {res.seconds:.1f} s, {rate:.1f} scenes/s on "
+        f"{jobs if args.backend == 'loky' else 'dask'} job{'s' if jobs != 1 else ''}")
+    if res.failed_runs:
+        say(f"warning: {res.failed_runs} scenes raised in the engine; their status is 'failed: exception ...'")
+    return 0
+
+
+def _human(seconds: float) -> str:
+    if seconds < 90:
+        return f"{seconds:.1f} s"
+    if seconds < 5400:
+        return f"{seconds / 60:.1f} min"
+    return f"{seconds / 3600:.1f} h"
