@@ -1,13 +1,17 @@
-"""Python API: `simulate(scene, case, **params) -> dict` (issue: the engine).
+"""Python API: `simulate(scene, case, **params) -> dict`.
 
-Orchestration only: checks parameters (params.resolve), prepares the derived constants
-(setup.prepare), calls the compiled kernel of the scene and unpacks its result vector.
+Orchestration only: checks parameters (params.resolve), prepares the kernel's parameter
+vector (setup.prepare), calls the compiled kernel of the scene and unpacks its results.
 """
 from __future__ import annotations
 
+import math
 from typing import Any
 
+import numpy as np
+
 from . import params as P
+from .results import N_CYCLE_RESULTS, N_IMPACT_RESULTS, unpack
 
 
 def simulate(scene: str = "cycle", case: str | None = None, **params: Any) -> dict:
@@ -22,6 +26,47 @@ def simulate(scene: str = "cycle", case: str | None = None, **params: Any) -> di
     return res
 
 
+def trajectory_capacity(p: np.ndarray) -> int:
+    """Rows enough for every step of a cycle at the fine step (plus slack)."""
+    from . import layout as Lp
+
+    return int(min(2_000_000, 1.2 * p[Lp.TMAX] / p[Lp.DT_FINE] + 10_000))
+
+
 def simulate_resolved(vals: dict, trajectory: bool = False):
-    """Run an already-resolved parameter set. Returns (results dict, trajectory DataFrame or None)."""
-    raise NotImplementedError("engine not yet in place")
+    """Run an already-resolved parameter set (params.resolve).
+
+    Returns (results dict, trajectory DataFrame or None). The trajectory (cycle only) has
+    the columns of scenes.cycle.TRAJ_COLUMNS, one row per integrator step.
+    """
+    from .setup import prepare, impact_step
+    from .contact import drop_speed
+
+    p = prepare(vals)
+    scene = vals["scene"]
+    if scene == "cycle":
+        from .scenes.cycle import TRAJ_COLUMNS, cycle_kernel
+
+        out = np.empty(N_CYCLE_RESULTS)
+        cap = trajectory_capacity(p) if trajectory else 0
+        traj = np.empty((cap, len(TRAJ_COLUMNS)))
+        rows = cycle_kernel(p, out, traj)
+        res = unpack("cycle", out)
+        if not trajectory:
+            return res, None
+        import pandas as pd
+
+        df = pd.DataFrame(traj[:rows], columns=list(TRAJ_COLUMNS))
+        df["stage"] = df["stage"].astype("int8")
+        return res, df
+    from .scenes.impact import impact_kernel
+
+    out = np.empty(N_IMPACT_RESULTS)
+    if scene == "freefall":
+        speed = drop_speed(vals["H"])
+        impact_kernel(p, True, False, speed, impact_step(p, vals, True, speed), out)
+    else:
+        rigid = vals["drive"] == "rigid"
+        free = vals["drive"] == "free"
+        impact_kernel(p, rigid, free, vals["w"], impact_step(p, vals, rigid, vals["w"]), out)
+    return unpack(scene, out), None

@@ -24,6 +24,10 @@ STATUS_MESSAGES = (
     "failed: step budget exhausted",
 )
 
+# ---- stages (MODEL.md §10) ----
+STAGE_S1, STAGE_S2, STAGE_S3, STAGE_S4, STAGE_RAIL = 0, 1, 2, 3, 4
+STAGES = ("S1", "S2", "S3", "S4", "rail")
+
 # ---- result vector layout for the cycle scene (MODEL.md §11), name -> (index, unit, meaning) ----
 CYCLE_RESULTS = (
     ("outcome", "-", "scraped / escaped / timeout / failed"),
@@ -71,6 +75,11 @@ RI = {name: i for i, (name, _, _) in enumerate(CYCLE_RESULTS)}
 #: index of each impact/freefall result in the kernel's output vector
 RJ = {name: i for i, (name, _, _) in enumerate(IMPACT_RESULTS)}
 N_CYCLE_RESULTS = len(CYCLE_RESULTS)
+# compile-time constants for the kernels: RC_<NAME> (cycle), RJ_<NAME> (impact, freefall)
+for _i, (_n, _u, _d) in enumerate(CYCLE_RESULTS):
+    globals()["RC_" + _n.upper()] = _i
+for _i, (_n, _u, _d) in enumerate(IMPACT_RESULTS):
+    globals()["RJ_" + _n.upper()] = _i
 N_IMPACT_RESULTS = len(IMPACT_RESULTS)
 
 UNITS = {name: unit for rows in SCENE_RESULTS.values() for name, unit, _ in rows}

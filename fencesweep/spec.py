@@ -43,7 +43,7 @@ class SpecError(P.ParameterError):
 
 
 def _did_you_mean(word: str, choices) -> str:
-    near = difflib.get_close_matches(str(word), list(choices), n=1)
+    near = difflib.get_close_matches(str(word), list(choices), n=1, cutoff=0.5)
     return f"; did you mean {near[0]!r}?" if near else ""
 
 

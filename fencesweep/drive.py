@@ -1,0 +1,96 @@
+"""The drive's kinematic constraint alpha_w(t) (MODEL.md §2).
+
+crank_rocker: a four-bar with time ratio 1 (rocker c = 1, crank a = sin(psi/2),
+coupler b = r_b, ground d = sqrt(b^2 + cos^2(psi/2))), open assembly; harmonic:
+alpha_w = psi/2 (1 - cos(2 pi t / t_c)). The drive rests outside [0, t_c].
+"""
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+
+from numba import njit
+
+from . import layout as Lp
+
+
+@njit(cache=True)
+def rocker_angle(theta, a, b, d):
+    """Rocker angle beta(theta) and d beta/d theta of the open crank-rocker (MODEL.md §2).
+
+    Crank pivot at the origin, rocker pivot at (d, 0), rocker c = 1. The rocker pin B is
+    the intersection of |B - A| = b and |B - (d,0)| = 1 left of the directed line A -> (d,0).
+    Velocity: differentiating A + b e(gamma) = (d,0) + e(beta) and dotting with e(gamma)
+    gives a sin(gamma - theta) = sin(gamma - beta) dbeta/dtheta.
+    """
+    ax = a * math.cos(theta)
+    ay = a * math.sin(theta)
+    ux = d - ax
+    uy = -ay
+    r = math.sqrt(ux * ux + uy * uy)
+    ux /= r
+    uy /= r
+    x0 = (b * b - 1.0 + r * r) / (2.0 * r)  # distance from A along A->(d,0) to the chord
+    hh = math.sqrt(max(b * b - x0 * x0, 0.0))
+    bx = ax + x0 * ux - hh * uy  # left normal of u is (-uy, ux)
+    by = ay + x0 * uy + hh * ux
+    beta = math.atan2(by, bx - d)
+    gamma = math.atan2(by - ay, bx - ax)
+    dbeta = a * math.sin(gamma - theta) / math.sin(gamma - beta)
+    return beta, dbeta
+
+
+@njit(cache=True)
+def drive_angle(t, p):
+    """alpha_w(t) [rad] and its rate [rad/s] (MODEL.md §2); at rest for t < 0 and t > t_c."""
+    tc = p[Lp.TC]
+    if t <= 0.0 or t >= tc:
+        return 0.0, 0.0
+    om = 2.0 * math.pi / tc
+    if p[Lp.PROFILE] == Lp.PROFILE_HARMONIC:
+        half = 0.5 * p[Lp.SWING]
+        return half * (1.0 - math.cos(om * t)), half * om * math.sin(om * t)
+    beta, dbeta = rocker_angle(p[Lp.TH0] + om * t, p[Lp.CRA], p[Lp.CRB], p[Lp.CRD])
+    aw = beta - p[Lp.BETA0]
+    # unwrap: the swing is below pi, so the difference lies in (-pi, pi]
+    if aw > math.pi:
+        aw -= 2.0 * math.pi
+    elif aw <= -math.pi:
+        aw += 2.0 * math.pi
+    return aw, dbeta * om
+
+
+def _beta_unwrapped(theta: float, a: float, b: float, d: float, ref: float) -> float:
+    beta = rocker_angle(theta, a, b, d)[0]
+    return ref + math.remainder(beta - ref, 2 * math.pi)
+
+
+@lru_cache(maxsize=256)
+def crank_rocker_geometry(swing: float, coupler_ratio: float) -> tuple[float, float, float, float, float]:
+    """(a, b, d, theta0, beta0): link lengths and the crank angle of minimum rocker angle."""
+    from scipy.optimize import minimize_scalar
+
+    a = math.sin(swing / 2)
+    b = coupler_ratio
+    d = math.sqrt(b * b + math.cos(swing / 2) ** 2)
+    ref = rocker_angle(0.0, a, b, d)[0]
+    n = 720
+    thetas = [2 * math.pi * i / n for i in range(n)]
+    vals = [_beta_unwrapped(th, a, b, d, ref) for th in thetas]
+    i = min(range(n), key=vals.__getitem__)
+    h = 2 * math.pi / n
+    res = minimize_scalar(lambda th: _beta_unwrapped(th, a, b, d, ref), bracket=None,
+                          bounds=(thetas[i] - h, thetas[i] + h), method="bounded",
+                          options={"xatol": 1e-14})
+    theta0 = float(res.x)
+    beta0 = rocker_angle(theta0, a, b, d)[0]
+    return a, b, d, theta0, beta0
+
+
+def max_drive_rate(swing: float, t_c: float, profile: str, coupler_ratio: float) -> float:
+    """max |d alpha_w/dt| [rad/s] over the cycle, by sampling (used for proximity bounds only)."""
+    om = 2 * math.pi / t_c
+    if profile == "harmonic":
+        return 0.5 * swing * om
+    a, b, d, th0, _ = crank_rocker_geometry(swing, coupler_ratio)
+    return max(abs(rocker_angle(th0 + 2 * math.pi * i / 400, a, b, d)[1]) for i in range(400)) * om

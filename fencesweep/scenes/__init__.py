@@ -1,0 +1,1 @@
+"""One file per scene (MODEL.md §8): cycle, impact, freefall."""
