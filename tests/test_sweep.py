@@ -1,0 +1,450 @@
+"""The sweep layer: deduplication, parallel determinism, streaming chunks, resume, metadata, Dask.
+
+Most tests run against `fake_engine`, a cheap deterministic function of the parameters,
+passed as `simulate=` (pickled by value, so loky workers need not import this file).
+`test_real_engine_*` run the real engine on a few scenes.
+"""
+import math
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import cloudpickle
+import numpy as np
+import pandas as pd
+import pyarrow.parquet as pq
+import pytest
+
+from fencesweep import api, cli, store, sweep
+from fencesweep import params as P
+from fencesweep import results as R
+from fencesweep import spec as S
+
+cloudpickle.register_pickle_by_value(sys.modules[__name__])
+
+
+def fake_engine(vals, trajectory=False):
+    """A deterministic stand-in for api.simulate_resolved: results from the used parameters."""
+    key = P.model_key(vals)
+    x = sum((k + 1) * (v if isinstance(v, float) else len(v)) for k, (_, v) in enumerate(key[1:]))
+    out = {}
+    for k, (name, _, _) in enumerate(R.SCENE_RESULTS[vals["scene"]]):
+        if name == "outcome":
+            out[name] = R.OUTCOMES[int(x * 7) % 3]
+        elif name == "status":
+            out[name] = "ok"
+        elif name in ("n_impacts", "n_steps"):
+            out[name] = int(x * 13) % 1000
+        elif name in ("safe", "deflection_ok"):
+            out[name] = math.sin(x + k) > 0
+        elif name == "t_first_contact" and int(x) % 5 == 0:
+            out[name] = math.nan
+        else:
+            out[name] = math.sin(x * (k + 1)) * 10.0 ** (k % 5)
+    return out, None
+
+
+class Counting:
+    """fake_engine that counts its calls (in this process: jobs = 1)."""
+
+    def __init__(self):
+        self.calls = []
+
+    def __call__(self, vals, trajectory=False):
+        self.calls.append(P.model_key(vals))
+        return fake_engine(vals, trajectory)
+
+
+SPEC = """
+    scene: cycle
+    params: {m1: 12.0}
+    grid:
+      drive: [rigid, flexible]
+      B2: {linspace: [0, 100, 5]}
+      K2: [200, 570]
+    cases: [small_far, long_near]
+    chunk_size: 4
+"""
+
+
+def spec(text=SPEC) -> S.Spec:
+    return S.loads(textwrap.dedent(text))
+
+
+def run(tmp_path, name="t.parquet", text=SPEC, **kw) -> sweep.Outcome:
+    kw.setdefault("simulate", fake_engine)
+    kw.setdefault("jobs", 1)
+    return sweep.run_sweep(spec(text), tmp_path / name, **kw)
+
+
+# ------------------------------------------------------------------ plan and dedup
+def test_dedup_simulates_each_model_once_and_fills_all_rows(tmp_path):
+    sp = spec()
+    plan = sweep.make_plan(sp)
+    # rigid: B2, K2 unused -> 1 run per case; flexible: 5 x 2 per case
+    assert sp.n_scenes == 2 * 2 * 5 * 2 == 40
+    assert plan.n_models == 2 * (1 + 10) == 22
+    assert plan.n_chunks == math.ceil(22 / 4)
+    eng = Counting()
+    res = run(tmp_path, simulate=eng)
+    assert len(eng.calls) == 22 + len(plan.variants)  # each run once, plus the warm-up
+    assert len(set(eng.calls)) == 22
+    df = pd.read_parquet(res.out)
+    assert len(df) == 40
+    rigid = df[(df.drive == "rigid") & (df.case == "small_far")]
+    assert len(rigid) == 10 and rigid.peak_force.nunique() == 1 and rigid.B2.nunique() == 5
+    # every row holds the results of its own parameters
+    for i in (0, 13, 39):
+        vals = sp.resolve(i)
+        expect, _ = fake_engine(vals)
+        row = df.iloc[i]
+        for name, value in expect.items():
+            if isinstance(value, float) and math.isnan(value):
+                assert math.isnan(row[name])
+            else:
+                assert row[name] == value, name
+
+
+def test_table_has_every_parameter_and_result_with_units(tmp_path):
+    res = run(tmp_path)
+    schema = pq.read_schema(res.out)
+    names = schema.names
+    assert names[:2] == ["scene", "case"]
+    assert names[2:2 + len(P.NAMES)] == list(P.NAMES)  # MODEL.md §12 order, step_factor included
+    assert "Psi" in names
+    assert names[-len(R.CYCLE_RESULTS):] == [n for n, _, _ in R.CYCLE_RESULTS]
+    u = store.units(res.out)
+    assert u["B2"] == "N m s/rad" and u["k1"] == "N/m^1.5" and u["peak_force"] == "N"
+    assert u["deflection_max"] == "rad" and u["outcome"] == "-"
+    assert schema.field("B2").metadata[b"role"] == b"parameter"
+    assert schema.field("peak_force").metadata[b"role"] == b"result"
+    df = pd.read_parquet(res.out)
+    assert df["n_steps"].dtype == np.int64 and df["safe"].dtype == bool
+    assert df["B2"].dtype == np.float64 and set(df["outcome"]) <= set(R.OUTCOMES)
+    assert set(df["case"]) == {"small_far", "long_near"}
+    assert df.loc[0, "I2"] == pytest.approx(5.0 * 1.2 ** 2 / 3)  # derived values filled in
+    assert df["Psi"].iloc[-1] == pytest.approx(100 / (2 * math.sqrt(570 * 2.4)))
+
+
+def test_metadata_records_spec_hash_and_versions(tmp_path):
+    import numba
+
+    import fencesweep
+
+    res = run(tmp_path)
+    meta = store.read_metadata(res.out)
+    sp = spec()
+    assert meta["spec_hash"] == sp.hash
+    assert meta["spec"] == sp.normalized()
+    assert "chunk_size: 4" in meta["spec_source"]
+    v = meta["versions"]
+    assert v["fencesweep"] == fencesweep.__version__
+    assert v["numba"] == numba.__version__ and v["numpy"] == np.__version__
+    assert len(v["source_hash"]) == 64
+    assert meta["counts"] == {"scenes": 40, "skipped": 0, "model_runs": 22, "chunk_size": 4}
+    df = store.read_table(res.out)
+    assert df.attrs["units"]["K2"] == "N m/rad" and df.attrs["fencesweep"]["spec_hash"] == sp.hash
+
+
+def test_pandas_round_trip(tmp_path):
+    res = run(tmp_path)
+    df = pd.read_parquet(res.out)
+    again = tmp_path / "again.parquet"
+    df.to_parquet(again)
+    back = pd.read_parquet(again)
+    pd.testing.assert_frame_equal(df, back)
+    assert len(df) == 40 and df.index.equals(pd.RangeIndex(40))
+
+
+def test_same_table_bit_for_bit_for_1_and_2_jobs(tmp_path):
+    a = run(tmp_path, "one.parquet", jobs=1)
+    b = run(tmp_path, "two.parquet", jobs=2)
+    assert a.out.read_bytes() == b.out.read_bytes()
+    pd.testing.assert_frame_equal(pd.read_parquet(a.out), pd.read_parquet(b.out))
+    assert not sweep.work_root(a.out).exists()  # the work directory is removed when done
+
+
+def test_impact_scene_columns(tmp_path):
+    text = """
+        scene: impact
+        grid: {m2: {logspace: [0.5, 100, 5]}}
+        cases: [{drive: rigid}, {drive: free}]
+    """
+    res = run(tmp_path, text=text)
+    df = pd.read_parquet(res.out)
+    assert len(df) == 10 and res.n_models == 6  # rigid ignores m2
+    assert list(df.columns[-len(R.IMPACT_RESULTS):]) == [n for n, _, _ in R.IMPACT_RESULTS]
+    assert "outcome" not in df.columns
+
+
+def test_invalid_skip_rows_are_left_out(tmp_path):
+    text = """
+        invalid: skip
+        grid: {dP: [0.0, 0.6], phi0: [0.0, 0.3]}
+        cases: [small_far]
+    """
+    res = run(tmp_path, text=text)
+    df = pd.read_parquet(res.out)
+    # small load 0.2 x 0.1 at phi0 = 0.3: height 0.2 sin 0.3 + 0.1 cos 0.3 = 0.155 > 0.1
+    assert len(df) == 3 and res.n_scenes == 3
+    assert store.read_metadata(res.out)["counts"]["skipped"] == 1
+
+
+def test_engine_exception_becomes_a_failed_row(tmp_path):
+    def flaky(vals, trajectory=False):
+        if vals["B2"] == 50.0 and vals["drive"] == "flexible":
+            raise FloatingPointError("boom")
+        return fake_engine(vals)
+
+    res = run(tmp_path, simulate=flaky)
+    df = pd.read_parquet(res.out)
+    bad = df[df.status.str.startswith("failed: exception")]
+    assert len(bad) == 4 and res.failed_runs == 4  # 2 cases x 2 K2
+    assert (bad.outcome == "failed").all() and bad.peak_force.isna().all()
+    assert "FloatingPointError: boom" in bad.status.iloc[0]
+
+
+def test_engine_failing_at_warm_up_stops_before_dispatch(tmp_path):
+    def broken(vals, trajectory=False):
+        raise NotImplementedError("engine not yet in place")
+
+    with pytest.raises(RuntimeError, match="engine not yet in place"):
+        run(tmp_path, simulate=broken)
+    assert not (tmp_path / "t.parquet").exists()
+
+
+# ------------------------------------------------------------------ streaming and resume
+def test_killed_sweep_resumes_computing_only_missing_chunks(tmp_path, monkeypatch):
+    ref = run(tmp_path, "ref.parquet")
+    plan = sweep.make_plan(spec())
+    out = tmp_path / "t.parquet"
+    real_write = store.write_chunk
+    written = []
+
+    def dying_write(path, *a, **kw):
+        if len(written) == 3:
+            raise KeyboardInterrupt  # as if killed after 3 chunks
+        real_write(path, *a, **kw)
+        written.append(Path(path).name)
+
+    monkeypatch.setattr(store, "write_chunk", dying_write)
+    with pytest.raises(KeyboardInterrupt):
+        run(tmp_path, simulate=fake_engine)
+    monkeypatch.setattr(store, "write_chunk", real_write)
+    work = sweep.work_root(out) / plan.salt[:16]
+    assert sorted(p.name for p in work.glob("chunk-*.parquet")) == sorted(written)
+    assert not out.exists() and not list(work.glob(".*tmp*"))
+
+    eng = Counting()
+    res = run(tmp_path, simulate=eng)
+    assert res.reused == 3 and res.computed == plan.n_chunks - 3
+    done_models = 3 * plan.chunk_size
+    assert len(eng.calls) == plan.n_models - done_models + len(plan.variants)
+    assert out.read_bytes() == ref.out.read_bytes()  # nothing lost, nothing different
+
+
+def test_no_resume_recomputes_everything(tmp_path, monkeypatch):
+    plan = sweep.make_plan(spec())
+    real_write = store.write_chunk
+    n = []
+
+    def dying_write(path, *a, **kw):
+        if len(n) == 2:
+            raise KeyboardInterrupt
+        real_write(path, *a, **kw)
+        n.append(1)
+
+    monkeypatch.setattr(store, "write_chunk", dying_write)
+    with pytest.raises(KeyboardInterrupt):
+        run(tmp_path)
+    monkeypatch.setattr(store, "write_chunk", real_write)
+    res = run(tmp_path, resume=False)
+    assert res.reused == 0 and res.computed == plan.n_chunks
+
+
+def test_changed_spec_never_reuses_stale_chunks(tmp_path, monkeypatch):
+    real_write = store.write_chunk
+    n = []
+
+    def dying_write(path, *a, **kw):
+        if len(n) == 2:
+            raise KeyboardInterrupt
+        real_write(path, *a, **kw)
+        n.append(1)
+
+    monkeypatch.setattr(store, "write_chunk", dying_write)
+    with pytest.raises(KeyboardInterrupt):
+        run(tmp_path)
+    monkeypatch.setattr(store, "write_chunk", real_write)
+    changed = SPEC.replace("m1: 12.0", "m1: 13.0")
+    res = run(tmp_path, text=changed)
+    assert res.reused == 0
+    df = pd.read_parquet(res.out)
+    assert (df.m1 == 13.0).all()
+    expect, _ = fake_engine(spec(changed).resolve(0))
+    assert df.loc[0, "peak_force"] == expect["peak_force"]
+
+
+def test_chunk_name_depends_on_spec_and_contents():
+    a = sweep.make_plan(spec())
+    b = sweep.make_plan(spec(SPEC.replace("K2: [200, 570]", "K2: [200, 571]")))
+    assert a.chunk_name(0) != b.chunk_name(0)
+    assert a.chunk_name(0) != a.chunk_name(1)
+    assert a.chunk_name(0) == sweep.make_plan(spec()).chunk_name(0)
+
+
+def test_truncated_chunk_is_recomputed(tmp_path, monkeypatch):
+    real_write = store.write_chunk
+    n = []
+
+    def dying_write(path, *a, **kw):
+        if len(n) == 2:
+            raise KeyboardInterrupt
+        real_write(path, *a, **kw)
+        n.append(Path(path))
+
+    monkeypatch.setattr(store, "write_chunk", dying_write)
+    with pytest.raises(KeyboardInterrupt):
+        run(tmp_path)
+    monkeypatch.setattr(store, "write_chunk", real_write)
+    n[0].write_bytes(n[0].read_bytes()[:50])  # damaged by hand
+    res = run(tmp_path)
+    assert res.reused == 1
+
+
+KILL_SCRIPT = """
+import sys, time
+sys.path.insert(0, {tests!r})
+import test_sweep as T
+from fencesweep import sweep
+
+def slow(vals, trajectory=False):
+    time.sleep(0.02)
+    return T.fake_engine(vals)
+
+sweep.run_sweep(T.spec(), {out!r}, jobs=1, simulate=slow)
+"""
+
+
+def test_process_killed_mid_sweep_then_rerun(tmp_path):
+    out = tmp_path / "t.parquet"
+    script = tmp_path / "kill_me.py"
+    script.write_text(KILL_SCRIPT.format(tests=str(Path(__file__).parent), out=str(out)))
+    plan = sweep.make_plan(spec())
+    work = sweep.work_root(out) / plan.salt[:16]
+    proc = subprocess.Popen([sys.executable, str(script)])
+    try:
+        deadline = time.time() + 60
+        while len(list(work.glob("chunk-*.parquet"))) < 2:
+            assert proc.poll() is None and time.time() < deadline, "the sweep ended before it was killed"
+            time.sleep(0.005)
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    saved = len(list(work.glob("chunk-*.parquet")))
+    assert 2 <= saved < plan.n_chunks and not out.exists()
+    eng = Counting()
+    res = run(tmp_path, simulate=eng)
+    assert res.reused == saved and res.computed == plan.n_chunks - saved
+    ref = run(tmp_path, "ref.parquet")
+    assert out.read_bytes() == ref.out.read_bytes()
+
+
+def test_assembly_memory_is_bounded_by_blocks(tmp_path, monkeypatch):
+    """Small blocks and a tiny chunk cache give the same table (the streaming path)."""
+    ref = run(tmp_path, "ref.parquet")
+    monkeypatch.setattr(sweep, "ASSEMBLY_BLOCK", 7)
+    monkeypatch.setattr(sweep, "CHUNK_CACHE", 1)
+    res = run(tmp_path)
+    pd.testing.assert_frame_equal(pd.read_parquet(ref.out), pd.read_parquet(res.out))
+    assert pq.ParquetFile(res.out).metadata.num_row_groups == math.ceil(40 / 7)
+
+
+# ------------------------------------------------------------------ Dask
+def test_dask_backend_on_a_local_cluster_matches_local_run(tmp_path):
+    distributed = pytest.importorskip("distributed")
+    ref = run(tmp_path, "ref.parquet")
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=False,
+                                  dashboard_address=None) as cluster:
+        res = run(tmp_path, "dask.parquet", backend="dask", scheduler=cluster.scheduler_address)
+    assert res.out.read_bytes() == ref.out.read_bytes()
+
+
+# ------------------------------------------------------------------ CLI
+def test_cli_grid_dry_run_and_run(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(api, "simulate_resolved", fake_engine)
+    path = tmp_path / "s.yaml"
+    path.write_text(textwrap.dedent(SPEC) + f"output: {tmp_path / 'cli.parquet'}\n")
+    assert cli.main(["grid", str(path), "--dry-run", "--jobs", "2"]) == 0
+    text = capsys.readouterr().out
+    assert "40 scenes" in text and "distinct model runs: 22" in text and "estimated time on 2 jobs" in text
+    assert not (tmp_path / "cli.parquet").exists()
+    assert cli.main(["grid", str(path), "--jobs", "1", "--quiet"]) == 0
+    df = pd.read_parquet(tmp_path / "cli.parquet")
+    assert len(df) == 40
+    other = tmp_path / "other.parquet"
+    assert cli.main(["grid", str(path), "--jobs", "1", "--out", str(other)]) == 0
+    assert "wrote" in capsys.readouterr().err and other.exists()
+
+
+def test_write_trajectory_round_trip(tmp_path):
+    traj = pd.DataFrame({"t": np.linspace(0, 1, 5), "alpha": np.arange(5.0), "stage": np.int8([2, 1, 1, 3, 2])})
+    traj.attrs["units"] = {"t": "s", "alpha": "rad"}
+    vals = P.resolve("cycle", "small_far")
+    res, _ = fake_engine(vals)
+    path = tmp_path / "traj.parquet"
+    store.write_trajectory(traj, path, vals, res)
+    back = store.read_trajectory(path)
+    pd.testing.assert_frame_equal(back, traj, check_like=False)
+    assert back.attrs["params"]["case"] == "small_far" and back.attrs["params"]["L"] == 0.2
+    assert back.attrs["results"]["outcome"] == res["outcome"]
+    assert back.attrs["units"] == {"t": "s", "alpha": "rad"}
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
+
+
+# ------------------------------------------------------------------ the real engine
+def _real_engine_or_skip():
+    try:
+        api.simulate_resolved(P.resolve("freefall"))
+    except NotImplementedError:
+        pytest.skip("engine not yet in place")
+
+
+def test_real_engine_impact_sweep_same_for_1_and_2_jobs(tmp_path):
+    _real_engine_or_skip()
+    text = """
+        scene: impact
+        grid: {m2: {logspace: [1, 50, 3]}}
+        cases: [{drive: rigid}, {drive: free}]
+    """
+    a = run(tmp_path, "a.parquet", text=text, simulate=None, jobs=1)
+    b = run(tmp_path, "b.parquet", text=text, simulate=None, jobs=2)
+    assert a.out.read_bytes() == b.out.read_bytes()
+    df = pd.read_parquet(a.out)
+    assert (df.status == "ok").all()
+    rigid = df[df.drive == "rigid"].peak_force.to_numpy()
+    free = df[df.drive == "free"].peak_force.to_numpy()
+    assert np.all(rigid / free > 1.0)  # MODEL.md §13.3: the rigid fence hits harder
+    one = api.simulate("impact", m2=float(df.m2.iloc[4]), drive="free")
+    assert one["peak_force"] == df.peak_force.iloc[4]
+
+
+def test_real_engine_cycle_rows_match_single_runs(tmp_path):
+    _real_engine_or_skip()
+    text = """
+        grid: {drive: [rigid, flexible], B2: [40, 72]}
+        cases: [small_far]
+    """
+    res = run(tmp_path, text=text, simulate=None, jobs=1)
+    df = pd.read_parquet(res.out)
+    assert len(df) == 4 and res.n_models == 3
+    one = api.simulate("cycle", "small_far", drive="flexible", B2=40.0)
+    row = df[(df.drive == "flexible") & (df.B2 == 40.0)].iloc[0]
+    for name in ("outcome", "peak_force", "deflection_max", "n_steps"):
+        assert row[name] == one[name]
