@@ -120,7 +120,8 @@ def defaults() -> dict[str, Any]:
 
 
 def _unknown(name: str, what: str = "parameter") -> ParameterError:
-    near = difflib.get_close_matches(name, NAMES, n=1)
+    lower = {n.lower(): n for n in NAMES}
+    near = [lower[name.lower()]] if name.lower() in lower else difflib.get_close_matches(name, NAMES, n=1, cutoff=0.5)
     hint = f"; did you mean {near[0]!r}?" if near else ""
     return ParameterError(f"unknown {what} {name!r}{hint} (known: {', '.join(NAMES)})")
 
@@ -207,6 +208,13 @@ def resolve(scene: str = "cycle", case: str | None = None, **overrides: Any) -> 
     vals["scene"] = scene
     vals["case"] = case
     return vals
+
+
+def relative_damping(B2: float, K2: float, I2: float) -> float:
+    """Psi = B2 / (2 sqrt(K2 I2)) (paper §4.2, MODEL.md §3); inf when K2 = 0 and B2 > 0."""
+    if K2 <= 0.0:
+        return math.inf if B2 > 0 else math.nan
+    return B2 / (2.0 * math.sqrt(K2 * I2))
 
 
 def load_corners(L: float, A: float, phi: float) -> list[tuple[float, float]]:

@@ -43,7 +43,8 @@ FENCE_BITS = 0x10F
 RAIL_BITS = 0xF0
 # trajectory columns
 TRAJ_COLUMNS = ("t", "x", "y", "phi", "vx", "vy", "omega", "alpha", "alpha_w", "dalpha",
-                "N_fence", "N_rail", "M_fence", "stage")
+                "N_fence", "N_rail", "M_fence", "stage",
+                "E_damper", "E_contact", "W_drive", "W_belt", "E_friction")
 N_TRAJ = len(TRAJ_COLUMNS)
 # quantities whose maxima are located inside the step
 Q_NF, Q_NR, Q_DEFL, Q_ALPHA = 0, 1, 2, 3
@@ -492,6 +493,8 @@ def _record(traj, row, t, y, p, iw, aux):
     traj[row, 11] = aux[AX_NR]
     traj[row, 12] = -aux[AX_TAU]  # moment of the load on the fence, paper's sign (N R > 0)
     traj[row, 13] = stage_of(int(aux[AX_MASK])) if iw[IW_LOAD] != 0 else -1
+    for i in range(5):
+        traj[row, 14 + i] = y[8 + i]
     return row + 1
 
 
