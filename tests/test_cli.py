@@ -1,0 +1,55 @@
+"""The command line: results as a table or JSON, bad input -> one message and exit code 2."""
+import json
+import subprocess
+import sys
+
+import pytest
+
+from fencesweep.cli import main
+
+
+def test_run_json_small_far(capsys):
+    assert main(["run", "--case", "small_far", "--json"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert res["outcome"] == "scraped" and res["status"] == "ok"
+    assert {"peak_force", "overload", "deflection_max", "residual_deflection", "t_S4", "n_steps"} <= set(res)
+
+
+def test_run_table_with_set(capsys):
+    assert main(["run", "--case", "long_near", "--set", "drive=rigid", "--set", "t_c=1.36"]) == 0
+    out = capsys.readouterr().out
+    assert "outcome" in out and "scraped" in out and "peak_force" in out and " N" in out
+
+
+def test_run_impact_and_freefall(capsys):
+    assert main(["run", "--scene", "freefall", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["peak_force"] == pytest.approx(6414, abs=1)
+    assert main(["run", "--scene", "impact", "--set", "drive=free", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["e_eff"] < 0.2
+
+
+@pytest.mark.parametrize("args, msg", [
+    (["run", "--set", "B3=1"], "did you mean 'B2'"),
+    (["run", "--set", "m1=-2"], "m1 = -2.0 is out of range"),
+    (["run", "--set", "B2"], "is not NAME=VALUE"),
+    (["run", "--set", "dP=0.7"], "dP = 0.7 is not allowed"),
+])
+def test_bad_input_exit_code_2(args, msg, capsys):
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert msg in err and "Traceback" not in err
+
+
+def test_trajectory_written_for_plotting(tmp_path):
+    pd = pytest.importorskip("pandas")
+    path = tmp_path / "traj.parquet"
+    assert main(["run", "--case", "small_far", "--trajectory", str(path)]) == 0
+    df = pd.read_parquet(path)
+    assert {"t", "x", "y", "phi", "alpha", "alpha_w", "N_fence", "N_rail", "stage"} <= set(df.columns)
+    assert df.t.is_monotonic_increasing and df.N_fence.max() > 1000
+
+
+def test_console_script_runs_as_a_user_would():
+    r = subprocess.run([sys.executable, "-m", "fencesweep.cli", "run", "--set", "e=2"],
+                       capture_output=True, text=True)
+    assert r.returncode == 2 and "e = 2.0 is out of range" in r.stderr
