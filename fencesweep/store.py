@@ -158,7 +158,7 @@ def atomic_path(path: str | Path):
     """Yield a temporary path beside `path`; on success fsync it and os.replace it onto `path`."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    tmp = path.with_name(f".fencesweep-tmp-{os.getpid()}-{path.name}")
     try:
         yield tmp
         with open(tmp, "rb") as fh:

@@ -5,11 +5,13 @@
    params.model_key: scenes that differ only in parameters their model does not use
    (B2, K2, m2 under a rigid drive, ...) share one run (MODEL.md §8).
 2. The distinct runs, numbered in order of first appearance, are cut into chunks of
-   `chunk_size` runs (a function of the spec only, never of --jobs or timing). A chunk's
-   file name carries a digest of the spec hash, the package's source hash and the model
-   keys of its runs, so a changed spec or engine never reuses a stale chunk.
+   `chunk_size` runs: the spec's, or sized from a short timed sample to take about
+   CHUNK_SECONDS each (dispatch and writing then cost well under 1 %), and recorded in
+   the work directory so that a resumed sweep cuts the same chunks. A chunk's file name
+   carries a digest of the spec hash, the package's source hash, its chunk size and the
+   model keys of its runs, so a changed spec or engine never reuses a stale chunk.
 3. Pending chunks run in parallel through joblib (loky locally, or Dask); each finished
-   chunk is written atomically into the work directory `OUT.work/` beside the output. A
+   chunk is written atomically into the work directory `OUT.partial/` beside the output. A
    killed sweep, rerun, computes only the chunks that are missing.
 4. The table is assembled block by block from the chunks (rows in scene order) into one
    Parquet file, atomically; then the work directory is removed.
@@ -38,16 +40,19 @@ from . import params as P
 from . import spec as S
 from . import store
 
-#: chunk size rule: about CHUNK_TARGET chunks, each of CHUNK_MIN..CHUNK_MAX model runs.
-#: At 1-3 ms a run a chunk takes >= 30 ms, against ~0.5 ms of dispatch (benchmarks/sweep_dispatch.py).
-CHUNK_MIN, CHUNK_MAX, CHUNK_TARGET = 32, 1024, 64
+#: chunk size rule: chunks of about CHUNK_SECONDS of work, at least MIN_CHUNKS of them.
+#: A chunk costs ~0.6-2 ms of dispatch and ~2-15 ms to write (benchmarks/sweep_dispatch.py),
+#: i.e. < 1.5 % of one second; MIN_CHUNKS keeps small sweeps balanced and resumable.
+CHUNK_SECONDS, MIN_CHUNKS, CHUNK_MAX = 1.0, 16, 100_000
 ASSEMBLY_BLOCK = 65_536  # rows per Parquet row group of the final table
 CHUNK_CACHE = 8  # chunks held in memory while assembling
 _CHOICES = tuple(p.name for p in P.TABLE if p.kind == "choice")
 
 
-def auto_chunk_size(n_models: int) -> int:
-    return max(CHUNK_MIN, min(CHUNK_MAX, math.ceil(n_models / CHUNK_TARGET)))
+def auto_chunk_size(n_models: int, seconds_per_run: float) -> int:
+    """Model runs per chunk: about CHUNK_SECONDS of work, but at least MIN_CHUNKS chunks."""
+    by_time = math.ceil(CHUNK_SECONDS / max(seconds_per_run, 1e-7))
+    return max(1, min(by_time, math.ceil(n_models / MIN_CHUNKS), CHUNK_MAX))
 
 
 # ------------------------------------------------------------------------------ plan
@@ -59,7 +64,7 @@ class Plan:
     row_model: np.ndarray  # model run of each scene; -1 for a skipped scene
     first_row: np.ndarray  # the first scene of each model run
     digests: bytes  # 16 bytes per model run: blake2b of its model key
-    chunk_size: int
+    chunk_size: int | None  # None until measured (run_sweep) unless the spec gives it
     variants: dict  # (scene, drive, contact_law, profile) -> first model run with it
     skipped: int = 0
     skipped_examples: list = field(default_factory=list)
@@ -82,7 +87,7 @@ class Plan:
 
     def chunk_name(self, c: int) -> str:
         m = self.chunk_models(c)
-        h = hashlib.sha256(f"{self.salt}:{c}:".encode())
+        h = hashlib.sha256(f"{self.salt}:{self.chunk_size}:{c}:".encode())
         h.update(self.digests[16 * m.start:16 * m.stop])
         return f"chunk-{c:06d}-{h.hexdigest()[:16]}.parquet"
 
@@ -130,7 +135,7 @@ def make_plan(spec: S.Spec, progress: bool = False) -> Plan:
     bar.close()
     if not first_row:
         raise S.SpecError(f"every one of the {n} scenes is invalid (invalid: skip); e.g. {examples[0]}")
-    chunk = spec.chunk_size or auto_chunk_size(len(first_row))
+    chunk = spec.chunk_size
     v = store.versions()
     salt = hashlib.sha256(f"{spec.hash}:{v['fencesweep']}:{v['source_hash']}".encode()).hexdigest()
     return Plan(spec, row_model, np.asarray(first_row, dtype=np.int64), bytes(digests), chunk, variants,
@@ -168,7 +173,8 @@ def _run_chunk(c: int, scene: str, model_ids: list, vals_list: list, simulate: C
 
 
 def work_root(out: Path) -> Path:
-    return out.with_name(out.name + ".work")
+    """The work directory beside the output: OUT.partial/<salt[:16]>/chunk-*.parquet."""
+    return out.with_name(out.name + ".partial")
 
 
 def _bar(total: int, desc: str, enabled: bool, initial: int = 0):
@@ -235,9 +241,21 @@ def time_sample(plan: Plan, simulate: Callable | None = None, budget: float = 2.
     return (time.perf_counter() - t0) / k, k
 
 
+PLAN_FILE = "plan.json"
+
+
+def recorded_chunk_size(work: Path) -> int | None:
+    """The chunk size an interrupted run of the same spec and engine used (None if none)."""
+    try:
+        size = json.loads((work / PLAN_FILE).read_text()).get("chunk_size")
+    except (OSError, ValueError):
+        return None
+    return int(size) if isinstance(size, int) and size >= 1 else None
+
+
 def chunks_done(plan: Plan, work: Path) -> list:
     """Chunks whose file is in `work` and complete (the others are computed)."""
-    if not work.is_dir():
+    if not work.is_dir() or plan.chunk_size is None:
         return []
     return [c for c in range(plan.n_chunks)
             if store.chunk_complete(work / plan.chunk_name(c), len(plan.chunk_models(c)))]
@@ -286,8 +304,17 @@ def run_sweep(spec: S.Spec | str | Path, out: str | Path | None = None, jobs: in
                 log(f"removing {old} ({'--no-resume' if not resume else 'chunks of another spec or engine'})")
                 shutil.rmtree(old) if old.is_dir() else old.unlink()
     work.mkdir(parents=True, exist_ok=True)
-    (work / "spec.json").write_text(json.dumps({"spec": spec.normalized(), "spec_hash": spec.hash,
-                                                "salt": plan.salt}, indent=1))
+    warmed = False
+    if plan.chunk_size is None:
+        plan.chunk_size = recorded_chunk_size(work)
+    if plan.chunk_size is None:  # first run: size the chunks from a short timed sample
+        warm_up(plan, simulate)
+        warmed = True
+        per_run, _ = time_sample(plan, simulate, budget=0.5, most=8)
+        plan.chunk_size = auto_chunk_size(plan.n_models, per_run)
+    state = {"spec": spec.normalized(), "spec_hash": spec.hash, "salt": plan.salt, "chunk_size": plan.chunk_size}
+    with store.atomic_path(work / PLAN_FILE) as tmp:
+        tmp.write_text(json.dumps(state, indent=1))
     rows_of = plan.chunk_rows()
     done = chunks_done(plan, work)
     pending = sorted(set(range(plan.n_chunks)) - set(done))
@@ -295,7 +322,8 @@ def run_sweep(spec: S.Spec | str | Path, out: str | Path | None = None, jobs: in
         log(f"resuming: {len(done)} of {plan.n_chunks} chunks already in {work}")
     meta_chunk = {"salt": plan.salt}
     if pending:
-        warm_up(plan, simulate)
+        if not warmed:
+            warm_up(plan, simulate)
         bar = _bar(plan.n_scenes - plan.skipped, Path(spec.path).stem if spec.path else "sweep", progress,
                    initial=int(rows_of[done].sum()) if done else 0)
 
@@ -326,7 +354,7 @@ def table_meta(plan: Plan) -> dict:
     return {"spec": spec.normalized(), "spec_hash": spec.hash, "spec_source": spec.source,
             "versions": store.versions(), "scene": spec.scene,
             "counts": {"scenes": plan.n_scenes - plan.skipped, "skipped": plan.skipped,
-                       "model_runs": plan.n_models, "chunk_size": plan.chunk_size}}
+                       "model_runs": plan.n_models}}
 
 
 def assemble(plan: Plan, work: Path, out: Path) -> int:
@@ -392,7 +420,8 @@ def describe_plan(plan: Plan, out: Path) -> list:
         lines.append(f"  skipped (invalid: skip): {plan.skipped} scenes, e.g. {plan.skipped_examples[0]}")
     saved = plan.n_scenes - plan.skipped - plan.n_models
     lines.append(f"  distinct model runs: {plan.n_models}" + (f" ({saved} scenes share a run)" if saved else ""))
-    lines.append(f"  chunks: {plan.n_chunks} of up to {plan.chunk_size} runs")
+    if plan.chunk_size:
+        lines.append(f"  chunks: {plan.n_chunks} of up to {plan.chunk_size} runs")
     for axis in unused_axes(spec):
         lines.append(f"  note: {axis} is not used by scene {spec.scene}; its values all give the same run")
     return lines
@@ -437,19 +466,25 @@ def cmd_grid(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else default_output(spec)
     jobs = args.jobs or joblib.cpu_count()
     if args.dry_run:
-        for line in describe_plan(plan, out):
-            print(line)
         work = work_root(out) / plan.salt[:16]
-        done = [] if args.no_resume else chunks_done(plan, work)
-        n_pending = plan.n_models - sum(len(plan.chunk_models(c)) for c in done)
-        if done:
-            print(f"  already done: {len(done)} chunks in {work}")
+        if plan.chunk_size is None and not args.no_resume:
+            plan.chunk_size = recorded_chunk_size(work)
+        lines = describe_plan(plan, out)
         try:
             t_warm = warm_up(plan)
             per_run, k = time_sample(plan)
         except RuntimeError as exc:
+            print("\n".join(lines))
             print(f"  estimated time: unavailable ({exc})")
             return 0
+        if plan.chunk_size is None:
+            plan.chunk_size = auto_chunk_size(plan.n_models, per_run)
+            lines = describe_plan(plan, out)
+        print("\n".join(lines))
+        done = [] if args.no_resume else chunks_done(plan, work)
+        n_pending = plan.n_models - sum(len(plan.chunk_models(c)) for c in done)
+        if done:
+            print(f"  already done: {len(done)} chunks in {work}")
         workers = jobs if args.backend == "loky" else None
         est = per_run * n_pending / (workers or 1)
         print(f"  engine: warm-up {t_warm:.2f} s; {per_run * 1e3:.3g} ms per run (timed on {k} runs)")

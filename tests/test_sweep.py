@@ -145,7 +145,7 @@ def test_metadata_records_spec_hash_and_versions(tmp_path):
     assert v["fencesweep"] == fencesweep.__version__
     assert v["numba"] == numba.__version__ and v["numpy"] == np.__version__
     assert len(v["source_hash"]) == 64
-    assert meta["counts"] == {"scenes": 40, "skipped": 0, "model_runs": 22, "chunk_size": 4}
+    assert meta["counts"] == {"scenes": 40, "skipped": 0, "model_runs": 22}
     df = store.read_table(res.out)
     assert df.attrs["units"]["K2"] == "N m/rad" and df.attrs["fencesweep"]["spec_hash"] == sp.hash
 
@@ -237,7 +237,7 @@ def test_killed_sweep_resumes_computing_only_missing_chunks(tmp_path, monkeypatc
     monkeypatch.setattr(store, "write_chunk", real_write)
     work = sweep.work_root(out) / plan.salt[:16]
     assert sorted(p.name for p in work.glob("chunk-*.parquet")) == sorted(written)
-    assert not out.exists() and not list(work.glob(".*tmp*"))
+    assert not out.exists() and not list(work.glob(".fencesweep-tmp-*"))
 
     eng = Counting()
     res = run(tmp_path, simulate=eng)
@@ -287,6 +287,33 @@ def test_changed_spec_never_reuses_stale_chunks(tmp_path, monkeypatch):
     assert (df.m1 == 13.0).all()
     expect, _ = fake_engine(spec(changed).resolve(0))
     assert df.loc[0, "peak_force"] == expect["peak_force"]
+
+
+def test_auto_chunk_size_is_recorded_and_reused_on_resume(tmp_path, monkeypatch):
+    text = SPEC.replace("    chunk_size: 4\n", "")
+    ref = run(tmp_path, "ref.parquet", text=text)
+    # a fake run takes microseconds: chunks are capped to give MIN_CHUNKS of them
+    assert ref.n_chunks == math.ceil(22 / math.ceil(22 / sweep.MIN_CHUNKS))
+    real_write = store.write_chunk
+    n = []
+
+    def dying_write(path, *a, **kw):
+        if len(n) == 3:
+            raise KeyboardInterrupt
+        real_write(path, *a, **kw)
+        n.append(1)
+
+    monkeypatch.setattr(store, "write_chunk", dying_write)
+    with pytest.raises(KeyboardInterrupt):
+        run(tmp_path, text=text)
+    monkeypatch.setattr(store, "write_chunk", real_write)
+    monkeypatch.setattr(sweep, "auto_chunk_size", lambda *a: 5)  # the timing would differ now
+    res = run(tmp_path, text=text)
+    assert res.reused == 3 and res.n_chunks == ref.n_chunks
+    assert res.out.read_bytes() == ref.out.read_bytes()
+    # the table does not depend on the chunking
+    explicit = run(tmp_path, "explicit.parquet")
+    pd.testing.assert_frame_equal(pd.read_parquet(explicit.out), pd.read_parquet(ref.out))
 
 
 def test_chunk_name_depends_on_spec_and_contents():
