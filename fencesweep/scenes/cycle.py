@@ -49,6 +49,12 @@ N_TRAJ = len(TRAJ_COLUMNS)
 # quantities whose maxima are located inside the step
 Q_NF, Q_NR, Q_DEFL, Q_ALPHA = 0, 1, 2, 3
 GOLDEN = 0.6180339887498949
+# step control in contact (numerics; chosen by the convergence measurements in benchmarks/)
+C_STAB = 2.0  # h <= C_STAB / (largest local rate); RK4's real stability limit is 2.785
+ETA_FORCE = 0.01  # sustained contact: relative change of the contact force per step
+N_FLOOR = 0.01  # ... relative to the force plus this fraction of the free-fall force
+PULSE_WINDOW = 1.5  # fine steps for this many reference pulse times after an onset
+STEPS_PER_PULSE_REF = 80.0  # setup.STEPS_PER_PULSE: dt_fine * this = the reference pulse time
 
 
 @njit(cache=True)
@@ -586,6 +592,13 @@ def cycle_kernel(p, out, traj):
     v = p[Lp.V]
     h_grade = math.inf
     t_change = 0.0
+    t_pulse_end = 0.0
+    h_prev = dt_f
+    h_force = math.inf
+    n_old = 0.0
+    n_floor = N_FLOOR * p[Lp.FFORCE]
+    eta = ETA_FORCE * p[Lp.STEPF]  # every step control scales with step_factor
+    c_stab = min(C_STAB, C_STAB * p[Lp.STEPF])
     while True:
         t_end = tmax if not exited else tc
         if t >= t_end * (1.0 - 1e-15) or steps >= max_steps:
@@ -605,12 +618,16 @@ def cycle_kernel(p, out, traj):
             speed = math.sqrt(y[3] ** 2 + y[4] ** 2) + abs(y[5]) * r_load \
                 + p[Lp.FL] * (abs(y[7]) + p[Lp.DAW_MAX])
             margin = 2.0 * speed * dt_c
-            if mask0 != 0 or proximity(t, y, p, iw, margin) < margin:
-                h = dt_f
+            if mask0 == 0 and proximity(t, y, p, iw, margin) >= margin:
+                h = dt_c  # no contact within reach of a coarse step
+            elif mask0 == 0 or t < t_pulse_end:
+                h = dt_f  # a contact is near, or an impact pulse is under way
             else:
-                h = dt_c
+                # a sustained contact (sliding, S3/S4): the step follows the contact force,
+                # at most ETA_FORCE of its size (plus a floor) per step, growing at most 2x
+                h = min(dt_c, 2.0 * h_prev, h_force)
             if aux[AX_STIFF] > 0.0:
-                h = min(h, 2.0 / aux[AX_STIFF])
+                h = min(h, c_stab / aux[AX_STIFF])  # RK4 stability on the stiffest local mode
             h = min(h, h_grade)
         if t < tc and t + h > tc:
             h = tc - t
@@ -645,8 +662,15 @@ def cycle_kernel(p, out, traj):
                     # there; grade the next steps from dt_fine/1024, doubling, so that each
                     # spans about [t, 2t] of the singular term
                     h_grade = dt_f / 1024.0
+                    t_pulse_end = t + h + PULSE_WINDOW * dt_f * STEPS_PER_PULSE_REF
         steps += 1
         t1 = t + h
+        h_prev = h
+        if iw[IW_LOAD] != 0:
+            n_new = aux[AX_NF] + aux[AX_NR]
+            rate = abs(n_new - n_old) / h
+            h_force = eta * (max(n_new, n_old) + n_floor) / rate if rate > 0.0 else math.inf
+            n_old = n_new
         if t1 >= tc and t < tc:
             t1 = tc if abs(t1 - tc) < 1e-12 else t1
         mask1 = int(aux[AX_MASK]) if iw[IW_LOAD] != 0 else 0
@@ -690,7 +714,12 @@ def cycle_kernel(p, out, traj):
         for k in range(4):
             if k <= Q_NR and (exited or phase == 0):
                 continue
-            qk = quantity(k, t1, y1, p, iw, dyt, auxt)
+            if k == Q_NF:
+                qk = aux[AX_NF]  # f1 was evaluated at (t1, y1): its forces are the samples
+            elif k == Q_NR:
+                qk = aux[AX_NR]
+            else:
+                qk = quantity(k, t1, y1, p, iw, dyt, auxt)
             if qcur[k] >= qprev[k] and qcur[k] >= qk and qcur[k] > 0.0 and qcur[k] >= qmax[k] * 0.999:
                 qm = refine_max(k, ta, ya, fa, t, y, f0, t1, y1, f1, qcur[k], p, iw, tmp, dyt, auxt)
                 if qm > qmax[k]:
