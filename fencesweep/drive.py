@@ -87,6 +87,7 @@ def crank_rocker_geometry(swing: float, coupler_ratio: float) -> tuple[float, fl
     return a, b, d, theta0, beta0
 
 
+@lru_cache(maxsize=4096)
 def max_drive_rate(swing: float, t_c: float, profile: str, coupler_ratio: float) -> float:
     """max |d alpha_w/dt| [rad/s] over the cycle, by sampling (used for proximity bounds only)."""
     om = 2 * math.pi / t_c

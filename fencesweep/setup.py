@@ -21,7 +21,7 @@ _DRIVE = {"flexible": Lp.DRIVE_FLEXIBLE, "rigid": Lp.DRIVE_RIGID, "free": Lp.DRI
 _PROFILE = {"crank_rocker": Lp.PROFILE_CRANK_ROCKER, "harmonic": Lp.PROFILE_HARMONIC}
 
 #: RK4 steps per (conservatively short) impact pulse in a cycle, at step_factor = 1
-STEPS_PER_PULSE = 80
+STEPS_PER_PULSE = 40
 #: RK4 steps per pulse in the impact and free-fall scenes (cheap: one or two bodies)
 STEPS_PER_PULSE_IMPACT = 2000
 

@@ -37,7 +37,7 @@ N_STATE = 13
 FM_KELVIN, FM_KINEMATIC, FM_FREE = 0, 1, 2
 IW_MODE, IW_LOAD = 4, 5
 # aux outputs of the RHS
-AX_NF, AX_NR, AX_DMAX, AX_MASK, AX_TAU, AX_STIFF, N_AUX = 0, 1, 2, 3, 4, 5, 6
+AX_NF, AX_NR, AX_DMAX, AX_MASK, AX_TAU, AX_STIFF, AX_DDMAX, N_AUX = 0, 1, 2, 3, 4, 5, 6, 7
 # contact mask bits: corner-fence j -> bit j, corner-rail j -> bit 4 + j, tip-edge -> bit 8
 FENCE_BITS = 0x10F
 RAIL_BITS = 0xF0
@@ -50,11 +50,12 @@ N_TRAJ = len(TRAJ_COLUMNS)
 Q_NF, Q_NR, Q_DEFL, Q_ALPHA = 0, 1, 2, 3
 GOLDEN = 0.6180339887498949
 # step control in contact (numerics; chosen by the convergence measurements in benchmarks/)
-C_STAB = 2.0  # h <= C_STAB / (largest local rate); RK4's real stability limit is 2.785
+C_STAB = 1.5  # h <= C_STAB / (largest local rate); RK4's real stability limit is 2.785
 ETA_FORCE = 0.01  # sustained contact: relative change of the contact force per step
 N_FLOOR = 0.01  # ... relative to the force plus this fraction of the free-fall force
+C_ONSET = 0.25  # ... and at most C_ONSET / (local rate at the onset)
 PULSE_WINDOW = 1.5  # fine steps for this many reference pulse times after an onset
-STEPS_PER_PULSE_REF = 80.0  # setup.STEPS_PER_PULSE: dt_fine * this = the reference pulse time
+STEPS_PER_PULSE_REF = 40.0  # setup.STEPS_PER_PULSE: dt_fine * this = the reference pulse time
 
 
 @njit(cache=True)
@@ -97,6 +98,7 @@ def rhs(t, y, p, iw, dy, aux):
     p_fric = 0.0
     p_belt = 0.0
     stiff = 0.0
+    ddmax = 0.0  # largest closing rate D' of a force-carrying contact
     if iw[IW_LOAD] != 0:
         x = y[0]
         yy = y[1]
@@ -139,6 +141,7 @@ def rhs(t, y, p, iw, dy, aux):
                 p_fric -= f * wsl
                 if n > 0.0:
                     mask |= 1 << j
+                    ddmax = max(ddmax, Dd)
                     stiff = _contact_stiffness(stiff, D, n, wsl, kc, cd, law, mu2, eps, m_red)
                 if D > dmax:
                     dmax = D
@@ -156,6 +159,7 @@ def rhs(t, y, p, iw, dy, aux):
                 p_fric -= f * gvx
                 if n > 0.0:
                     mask |= 1 << (4 + j)
+                    ddmax = max(ddmax, Dd)
                     stiff = _contact_stiffness(stiff, D, n, gvx, kc, cd, law, mu2, eps, m_red)
                 if D > dmax:
                     dmax = D
@@ -202,6 +206,7 @@ def rhs(t, y, p, iw, dy, aux):
             p_fric -= f * wl
             if n > 0.0:
                 mask |= 1 << 8
+                ddmax = max(ddmax, Dd)
                 stiff = _contact_stiffness(stiff, D, n, wl, kc, cd, law, mu2, eps, m_red)
             if D > dmax:
                 dmax = D
@@ -240,6 +245,7 @@ def rhs(t, y, p, iw, dy, aux):
     aux[AX_MASK] = mask
     aux[AX_TAU] = tau
     aux[AX_STIFF] = stiff
+    aux[AX_DDMAX] = ddmax
 
 
 @njit(cache=True)
@@ -257,6 +263,19 @@ def _contact_stiffness(stiff, D, n, w, kc, cd, law, mu, eps, m_red):
     ww = w * w + eps * eps
     lam_f = mu * n * eps * eps / (ww * math.sqrt(ww)) / m_red
     return max(stiff, lam, lam_f)
+
+
+@njit(cache=True)
+def _pulse(w, p):
+    """Undamped pulse time [s] and peak force [N] of an impact at closing speed w [m/s] for
+    the smallest effective mass (MODEL.md §7 closed forms): Hertz 3.2181 (m^2/(k1^2 w))^0.2
+    and k1 (5 m w^2 / (4 k1))^0.6; linear pi sqrt(m/k) and w sqrt(m k)."""
+    m = p[Lp.M_RED]
+    k = p[Lp.KC]
+    w = max(w, 1e-9)
+    if p[Lp.LAW] == Lp.LAW_HERTZ:
+        return 3.2181 * (m * m / (k * k * w)) ** 0.2, k * (1.25 * m * w * w / k) ** 0.6
+    return math.pi * math.sqrt(m / k), w * math.sqrt(m * k)
 
 
 @njit(cache=True)
@@ -593,6 +612,7 @@ def cycle_kernel(p, out, traj):
     h_grade = math.inf
     t_change = 0.0
     t_pulse_end = 0.0
+    dt_pulse = dt_f
     h_prev = dt_f
     h_force = math.inf
     n_old = 0.0
@@ -618,10 +638,18 @@ def cycle_kernel(p, out, traj):
             speed = math.sqrt(y[3] ** 2 + y[4] ** 2) + abs(y[5]) * r_load \
                 + p[Lp.FL] * (abs(y[7]) + p[Lp.DAW_MAX])
             margin = 2.0 * speed * dt_c
-            if mask0 == 0 and proximity(t, y, p, iw, margin) >= margin:
+            gap = proximity(t, y, p, iw, margin) if mask0 == 0 else 0.0
+            if mask0 == 0 and gap >= margin:
                 h = dt_c  # no contact within reach of a coarse step
-            elif mask0 == 0 or t < t_pulse_end:
-                h = dt_f  # a contact is near, or an impact pulse is under way
+            elif mask0 == 0:
+                # a contact is near: no contact can begin within gap / speed, so the steps
+                # shrink geometrically with the gap down to the fine step (no tunnelling)
+                # down to a quarter of the pulse time at that closing speed, so that a whole
+                # contact cannot fall between two step ends
+                h_floor = max(dt_f, 0.25 * p[Lp.STEPF] * _pulse(speed, p)[0])
+                h = min(dt_c, max(h_floor, 0.5 * gap / speed))
+            elif t < t_pulse_end:
+                h = dt_pulse  # an impact pulse is under way
             else:
                 # a sustained contact (sliding, S3/S4): the step follows the contact force,
                 # at most ETA_FORCE of its size (plus a floor) per step, growing at most 2x
@@ -662,10 +690,22 @@ def cycle_kernel(p, out, traj):
                     # there; grade the next steps from dt_fine/1024, doubling, so that each
                     # spans about [t, 2t] of the singular term
                     h_grade = dt_f / 1024.0
-                    t_pulse_end = t + h + PULSE_WINDOW * dt_f * STEPS_PER_PULSE_REF
         steps += 1
         t1 = t + h
         h_prev = h
+        if iw[IW_LOAD] != 0 and (int(aux[AX_MASK]) & ~mask0) != 0:
+            # an onset: resolve its pulse with STEPS_PER_PULSE_REF steps of the pulse time at
+            # its own closing speed, unless its predicted peak is below the force floor (a
+            # light touch, left to the force-following control). A contact can also begin at
+            # a finite depth (a corner handed from the rail to the fence at the pivot): then
+            # the local rate of the contact at the onset bounds the step too.
+            t_pulse, f_pulse = _pulse(aux[AX_DDMAX], p)
+            if f_pulse >= n_floor:
+                t_pulse_end = max(t_pulse_end, t1 + PULSE_WINDOW * t_pulse)
+                dt_pulse = p[Lp.STEPF] * t_pulse / STEPS_PER_PULSE_REF
+                if aux[AX_STIFF] > 0.0:
+                    dt_pulse = min(dt_pulse, p[Lp.STEPF] * C_ONSET / aux[AX_STIFF])
+                dt_pulse = max(dt_f / 16.0, min(dt_c, dt_pulse))
         if iw[IW_LOAD] != 0:
             n_new = aux[AX_NF] + aux[AX_NR]
             rate = abs(n_new - n_old) / h
