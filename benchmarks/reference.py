@@ -335,6 +335,11 @@ def _maximise(fun, ts):
 def _impact_core(m1, w, R, I2, B2, K2, fence, law, method, rtol, atol):
     """Material point m1 against a fence point at distance R, normal speed w.
 
+    MODEL.md ambiguity: impulse = integral of N over the impact, contact_time = from
+    first touch to the first return of N to 0, e_eff = -(relative normal speed of the
+    point w.r.t. the fence point at separation) / w; the fence starts at rest at its
+    equilibrium (flexible: B2, K2 with the drive at rest; free: B2 = K2 = 0).
+
     State [x_p, xd_p, impulse] (+ [theta, thetad] unless rigid). D = x_p - R theta
     (small rotation), m1 xdd_p = -N, I2 thetadd = -B2 thetad - K2 theta + N R.
     The impact ends at the first return of N to 0.
@@ -458,6 +463,10 @@ class _Mode:
                            for k, v in self.__dict__.items()})
         return m
 
+    # MODEL.md ambiguity: "contact" for stages (§10), A/B, contact_time, n_impacts and
+    # the free fence's release (§3) is a FORCE-CARRYING contact (N > 0).  A contact
+    # that is geometrically penetrating but clipped (D > 0, N = 0 after a separation)
+    # counts as no contact; re-engagement from there is a new onset.
     def n_fence_active(self):
         return sum(1 for j in range(4) if self.cf_region[j] == ON and self.cf_state[j] == ACTIVE) \
             + (1 if self.tip_inside and self.tip_state == ACTIVE else 0)
@@ -466,7 +475,9 @@ class _Mode:
         return sum(1 for j in range(4) if self.rl_region[j] and self.rl_state[j] == ACTIVE)
 
     def stage(self):
-        """§10: S2 none, S1 one fence point, S3 >= 2 fence points, S4 fence + rail, rail."""
+        """§10: S2 none, S1 one fence point, S3 >= 2 fence points, S4 fence + rail, rail.
+
+        The tip-edge contact is one fence contact point like a corner."""
         nf, nr = self.n_fence_active(), self.n_rail_active()
         if nf == 0:
             return "S2" if nr == 0 else "rail"
@@ -615,6 +626,8 @@ class CycleModel:
         Nr = 0.0
         Dmax = -math.inf
         # §5.1 corner-fence
+        # MODEL.md ambiguity: the region 0 <= s <= l is closed (a corner exactly at the
+        # pivot or the tip is on the fence), h = 0 is no contact (sigma h < 0 strict).
         for j in range(4):
             if mode.cf_region[j] != ON or mode.cf_state[j] == OFF:
                 continue
@@ -641,6 +654,9 @@ class CycleModel:
             Mz += rx * fy - ry * fx
             tau -= sg * N * sj                               # moment on fence -sigma N s
         # §5.3 corner-rail
+        # MODEL.md ambiguity: x_G <= 0 is closed, y_G < 0 strict; leaving x_G = 0 with
+        # D > 0 drops the rail force at once (the hand-over to the fence happens at
+        # s = 0, which for alpha > 0 lies at x_G = -y_G tan(alpha) > 0: a short gap).
         for j in range(4):
             if not mode.rl_region[j] or mode.rl_state[j] == OFF:
                 continue
@@ -659,6 +675,9 @@ class CycleModel:
             Fy += N
             Mz += rx * N - ry * fx
         # §5.2 tip-edge
+        # MODEL.md ambiguity: the friction slip at the tip is the velocity of the
+        # load's material point at T relative to the tip T, along the pushed edge;
+        # the reaction of normal force and friction acts on the fence at T.
         if mode.tip_inside:
             D, Dd, nx, ny, tx, ty, slip, rx, ry, Tx, Ty = self.tip_contact(
                 mode, x, yc, c, s, u, w, om, al, ald)
@@ -807,10 +826,15 @@ class CycleModel:
                 else:
                     out.append(px if mode.tip_axis == 0 else py)
             elif kind == "scraped":
+                # MODEL.md ambiguity: checked all the time, also when the load no
+                # longer touches the fence (it can slide off past the tip and still
+                # reach P_max by its own momentum).
                 out.append(yc - self.p["P_max"])       # §9 centroid reaches P_max
             elif kind == "escaped":
                 out.append(min(cr[0] for cr in corners) - self.l)   # §9 all corners x > l
             elif kind == "fail":
+                # MODEL.md ambiguity: the penetration limit applies to every engaged
+                # contact (fence, tip, rail), clipped ones included.
                 if Dmax is None:
                     Dmax = self.evaluate(t, y, mode, want_rhs=False)[1][2]
                 out.append(Dmax - self.D_fail)
@@ -819,6 +843,10 @@ class CycleModel:
     # ---- mode transitions ------------------------------------------------------
     def _classify(self, D, N):
         """Contact state when a contact enters its region with penetration D."""
+        # MODEL.md ambiguity: a corner that enters the fence region (from behind the
+        # pivot, e.g. handed over from the rail) or the rail region already
+        # penetrating starts with that D, the force jumping; it is clipped (N = 0) if
+        # the unclipped law is <= 0 there.
         if D > 0.0:
             return ACTIVE if N > 0.0 else CLIPPED
         return OFF
@@ -894,6 +922,9 @@ class CycleModel:
             elif mode.tip_inside and not inside:
                 mode.tip_inside = False
                 mode.tip_state = OFF
+        # MODEL.md ambiguity: the separating-axis edge choice is re-evaluated all the
+        # time while the tip is inside, so the pushed edge can switch mid-contact
+        # (D and N then jump); it is not frozen at the tip's entry.
         elif kind in ("tp_sat", "tp_side"):
             # the crossing itself decides the new edge (re-evaluating the sign at the
             # root could pick the old edge again and loop on a zero-length segment)
@@ -984,6 +1015,7 @@ def simulate_cycle(p, method="DOP853", rtol=1e-10, atol=None, max_step=None,
     n_steps = 0
     n_mode_fixes = 0
     n_retries = 0
+    n_scan_events = 0
     outcome, status = None, "ok"
     state_at_tc = None
     released_at = math.nan
@@ -1052,17 +1084,30 @@ def simulate_cycle(p, method="DOP853", rtol=1e-10, atol=None, max_step=None,
                 break
             n_retries += 1
         n_steps += len(sol.t) - 1
-        t1 = float(sol.t[-1])
-        segments.append((t, t1, seg_mode, sol.sol, sol.t.copy()))
-        stage_time[seg_mode.stage()] += t1 - t
         if sol.status == -1:
+            segments.append((t, float(sol.t[-1]), seg_mode, sol.sol, sol.t.copy()))
             outcome, status = "failed", "failed: integrator: " + sol.message
             break
-        y_new = sol.y[:, -1].copy()
+        # ---- safety net: sub-step scan for crossings solve_ivp cannot see ----------
+        found = None
+        if np.all(np.isfinite(sol.y[:, -1])):
+            found = _scan_events(model, seg_mode, evlist, sol, t, y)
+        if found is not None:
+            n_scan_events += 1
+            k0, te, ye, t_old, y_old = found
+            ts_ = np.append(sol.t[sol.t < te], te)
+        else:
+            ts_ = sol.t.copy()
+        t1 = float(ts_[-1])
+        segments.append((t, t1, seg_mode, sol.sol, ts_))
+        # MODEL.md ambiguity: stage times cover [0, t_exit]; S2 ("none") includes
+        # the approach before the first contact and any time after the last one.
+        stage_time[seg_mode.stage()] += t1 - t
+        y_new = sol.y[:, -1].copy() if found is None else ye
         if not np.all(np.isfinite(y_new)):
             outcome, status = "failed", f"failed: non-finite state at t = {t1:.6g}"
             break
-        if sol.status == 0:
+        if sol.status == 0 and found is None:
             t, y = t1, y_new
             if mode.drive_on and t >= t_c and t_c < t_max:
                 mode.drive_on = False
@@ -1071,14 +1116,16 @@ def simulate_cycle(p, method="DOP853", rtol=1e-10, atol=None, max_step=None,
             outcome = "timeout"
             break
         # ---- a terminal event fired: which, and any tie at the same instant ----
-        fired = [k for k in range(len(evlist)) if len(sol.t_events[k]) > 0]
-        k0 = fired[0]
-        te = float(sol.t_events[k0][0])
-        ye = np.asarray(sol.y_events[k0][0], dtype=float)
+        if found is None:
+            fired = [k for k in range(len(evlist)) if len(sol.t_events[k]) > 0]
+            k0 = fired[0]
+            te = float(sol.t_events[k0][0])
+            ye = np.asarray(sol.y_events[k0][0], dtype=float)
+            t_old = float(sol.t[-2]) if len(sol.t) >= 2 else t
+            y_old = sol.y[:, -2] if len(sol.t) >= 2 else y
         batch = [k0]
-        t_old = float(sol.t[-2]) if len(sol.t) >= 2 else t
         if te > t_old:
-            g_old = model.event_values(t_old, sol.y[:, -2], seg_mode, evlist)
+            g_old = model.event_values(t_old, y_old, seg_mode, evlist)
             g_now = model.event_values(te, ye, seg_mode, evlist)
             for k, (kind, j, direc) in enumerate(evlist):
                 if k == k0:
@@ -1114,6 +1161,9 @@ def simulate_cycle(p, method="DOP853", rtol=1e-10, atol=None, max_step=None,
             if math.isnan(t_first):
                 t_first = t
             # §3 free fence: released at the first load-fence contact
+            # MODEL.md ambiguity: from alpha = alpha_w, alphadot = alphadot_w of that
+            # instant; B2 = K2 = 0 for the rest of the cycle, also after the load has
+            # left (so its damper_energy is 0 and it coasts to t_c).
             if drive_kind == "free" and not mode.fence_dyn:
                 al, ald = model.drive(t) if mode.drive_on else (0.0, 0.0)
                 mode.fence_dyn = True
@@ -1131,6 +1181,8 @@ def simulate_cycle(p, method="DOP853", rtol=1e-10, atol=None, max_step=None,
     if outcome == "timeout":
         t_exit = t_max
     still_touching = mode.n_fence_active() > 0
+    # MODEL.md ambiguity: without any load-fence contact t_first_contact is NaN and
+    # contact_time 0.
     if math.isnan(t_first):
         t_A, contact_time = math.nan, 0.0
     else:
@@ -1178,6 +1230,8 @@ def simulate_cycle(p, method="DOP853", rtol=1e-10, atol=None, max_step=None,
     residual = 0.0
     if outcome != "failed" and t_exit < t_c:
         # after the load has left only the fence's linear ODE remains, up to t_c
+        # MODEL.md ambiguity: also after a timeout with t_max < t_c, the load is then
+        # dropped; after a failure nothing is integrated (residual = NaN).
         if mode.fence_dyn:
             B2, K2, I2 = mode.B2, mode.K2, model.I2
             drv = model.drive
@@ -1215,6 +1269,8 @@ def simulate_cycle(p, method="DOP853", rtol=1e-10, atol=None, max_step=None,
             residual = abs(yc_[nm.index("al")] - 0.0)     # alpha_w(t_c) = 0
         Ed = float(yc_[nm.index("Ed")])
 
+    # MODEL.md ambiguity: x_exit, phi_exit are the centroid's x and phi at t_exit
+    # (at t_max for a timeout); contact_energy sums fence, tip and rail contacts.
     ff = simulate_freefall(p)
     ffF = ff["peak_force"]
     res = {
@@ -1228,11 +1284,12 @@ def simulate_cycle(p, method="DOP853", rtol=1e-10, atol=None, max_step=None,
         "safe": bool(peak_f / ffF <= 1.0),
         "deflection_max": defl_max,
         "deflection_ok": bool(defl_max <= p["dalpha_perm"]),
-        "residual_deflection": float(residual),
+        "residual_deflection": float(residual) if outcome != "failed" else math.nan,
         "alpha_max": alpha_max,
         "damper_energy": Ed,
         "contact_energy": Ec,
         "t_first_contact": t_A,
+        "t_last_contact": (t_A + contact_time) if not math.isnan(t_A) else math.nan,
         "contact_time": contact_time,
         "n_impacts": n_impacts,
         "t_S1": stage_time["S1"], "t_S2": stage_time["S2"], "t_S3": stage_time["S3"],
@@ -1244,6 +1301,7 @@ def simulate_cycle(p, method="DOP853", rtol=1e-10, atol=None, max_step=None,
         "n_segments": len(segments),
         "n_mode_fixes": n_mode_fixes,
         "n_retries": n_retries,
+        "n_scan_events": n_scan_events,
         "t_release": released_at,
         "stages": " ".join(f"{s_}@{t_:.6f}" for t_, s_ in stage_log),
         "status": status,
@@ -1252,6 +1310,58 @@ def simulate_cycle(p, method="DOP853", rtol=1e-10, atol=None, max_step=None,
         "I2": p["I2"],
     }
     return res, model.nfev
+
+
+SCAN_POINTS = 8     # samples per integrator step in _scan_events
+
+
+def _scan_events(model, mode, evlist, sol, t0, y0):
+    """Look for event crossings inside the steps of a finished segment.
+
+    solve_ivp only compares the signs of the event functions at step ends, so a
+    function that dips through zero and back within one step (the fence tip grazing
+    an edge of the load while no force acts, long steps) is missed.  The dense output
+    is sampled SCAN_POINTS times per step; the earliest crossing in the monitored
+    direction that comes before the segment's end (or before the event solve_ivp
+    reported) is located by brentq and returned as (k, te, ye, t_prev, y_prev).
+    """
+    t_end = float(sol.t[-1])
+    if t_end <= t0:
+        return None
+    steps = np.asarray(sol.t)
+    fr = np.arange(1, SCAN_POINTS + 1) / SCAN_POINTS
+    ts = (steps[:-1, None] + np.diff(steps)[:, None] * fr[None, :]).ravel()
+    ts = ts[ts <= t_end]
+    Y = sol.sol(ts)
+    g_prev = model.event_values(t0, y0, mode, evlist)
+    t_prev, y_prev = t0, y0
+    dirs = [ev[2] for ev in evlist]
+    for i, tt in enumerate(ts):
+        yy = Y[:, i]
+        g = model.event_values(tt, yy, mode, evlist)
+        hits = [k for k in range(len(evlist))
+                if (dirs[k] > 0 and g_prev[k] <= 0.0 < g[k]) or
+                (dirs[k] < 0 and g_prev[k] >= 0.0 > g[k])]
+        if hits:
+            if tt >= t_end and sol.status == 1:
+                return None          # the crossing solve_ivp reported itself
+            best = None
+            for k in hits:
+                def gk(t_, k=k):
+                    if t_ == t_prev:
+                        return g_prev[k]
+                    return model.event_values(t_, sol.sol(t_), mode, evlist)[k]
+                try:
+                    r = brentq(gk, t_prev, tt, xtol=4 * np.finfo(float).eps,
+                               rtol=4 * np.finfo(float).eps)
+                except ValueError:
+                    r = tt
+                if best is None or r < best[1]:
+                    best = (k, r)
+            k, r = best
+            return k, float(r), np.asarray(sol.sol(r), dtype=float), t_prev, y_prev
+        g_prev, t_prev, y_prev = g, tt, yy
+    return None
 
 
 def _fix_modes(model, t, y, mode, touched):

@@ -1,0 +1,162 @@
+"""Fast sanity tests of the independent reference model (benchmarks/reference.py).
+
+They check the reference against MODEL.md's closed forms and stated numbers, so
+that it can be trusted as the yardstick of the engine.  Total run time a few s.
+"""
+
+import math
+import os
+import sys
+
+import pytest
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), os.pardir, "benchmarks"))
+
+import reference as ref  # noqa: E402
+
+G = 9.81
+
+
+# --- §4 contact law calibration ---------------------------------------------------
+
+@pytest.mark.parametrize("e, q", [(0.2, 1.6351), (0.5, 0.5708), (0.9, 0.0766)])
+def test_q_of_e_reference_values(e, q):
+    assert abs(ref.q_from_e(e) - q) <= 2e-4
+
+
+def test_q_calibration_is_consistent():
+    # the rebound of the calibrated law is e to high accuracy; e = 1 is q = 0
+    for e in (0.1, 0.2, 0.7):
+        assert abs(ref._rebound_hertz(ref.q_from_e(e)) - e) < 1e-9
+        assert abs(ref._rebound_linear(ref.zeta_from_e(e)) - e) < 1e-9
+    assert ref.q_from_e(1.0) == 0.0
+
+
+# --- §7 free fall -------------------------------------------------------------------
+
+def test_freefall_peak_and_impulse():
+    r = ref.simulate_reference({}, scene="freefall")
+    assert r["status"] == "ok"
+    assert abs(r["peak_force"] - 6414.0) < 1.0            # MODEL.md §4, §7: 6.414 kN
+    vH = math.sqrt(2 * G * 0.3)
+    assert r["impulse"] == pytest.approx(15.0 * vH * 1.2, rel=1e-8)   # m1 w (1 + e)
+    assert r["e_eff"] == pytest.approx(0.2, abs=1e-8)
+
+
+def test_hertz_closed_form_with_e_equal_1():
+    m1, k1 = 15.0, 4.0e6
+    vH = math.sqrt(2 * G * 0.3)
+    r = ref.simulate_reference({"e": 1.0}, scene="freefall")
+    F0 = k1 * (5 * m1 * vH ** 2 / (4 * k1)) ** 0.6
+    assert F0 == pytest.approx(7354.0, abs=1.0)
+    assert r["peak_force"] == pytest.approx(F0, rel=1e-8)
+    assert r["contact_time"] == pytest.approx(3.2181 * (m1 ** 2 / (k1 ** 2 * vH)) ** 0.2,
+                                              rel=5e-5)
+    assert r["e_eff"] == pytest.approx(1.0, abs=1e-8)
+
+
+def test_default_k_lin_matches_undamped_hertz_peak():
+    # linear law, e = 1: the free-fall peak is sqrt(k_lin m1) v_H = F0 (§4)
+    r_lin = ref.simulate_reference({"e": 1.0, "contact_law": "linear"}, scene="freefall")
+    r_her = ref.simulate_reference({"e": 1.0}, scene="freefall")
+    assert r_lin["peak_force"] == pytest.approx(r_her["peak_force"], rel=1e-8)
+
+
+# --- §2 drive ---------------------------------------------------------------------------
+
+def test_crank_rocker_check_values():
+    d = ref.Drive("crank_rocker", math.pi / 4, 1.0, 2.5)
+    got = [math.degrees(d(f)[0]) for f in (1 / 6, 1 / 3, 2 / 3, 5 / 6)]
+    for g, want in zip(got, (12.328, 34.430, 35.258, 13.293)):
+        assert abs(g - want) < 1e-3
+    assert abs(d(0.0)[0]) < 1e-14 and abs(d(0.0)[1]) < 1e-9
+    assert d(0.5)[0] == pytest.approx(math.pi / 4, abs=1e-12)
+    assert abs(d(1.0)[0]) < 1e-12
+    h = 1e-6                                   # rate = derivative of the angle
+    for t in (0.1, 0.37, 0.8):
+        fd = (d(t + h)[0] - d(t - h)[0]) / (2 * h)
+        assert d(t)[1] == pytest.approx(fd, rel=1e-7)
+
+
+def test_drive_rests_outside_cycle():
+    d = ref.Drive("harmonic", 0.733, 1.36, 2.5)
+    assert d.at(-0.1) == (0.0, 0.0) and d.at(1.5) == (0.0, 0.0)
+    assert d.at(0.68)[0] == pytest.approx(0.733, rel=1e-14)
+
+
+# --- §6 footprint -----------------------------------------------------------------------
+
+def test_rho_bar_unit_square():
+    assert ref.rho_bar(1.0, 1.0) == pytest.approx(0.38260, abs=5e-6)
+
+
+# --- §8 impact: the paper's Fig. 5b ratio (MODEL.md §13.3) --------------------------------
+
+def test_impact_rigid_over_free_peak_ratio():
+    rigid = ref.simulate_reference({"drive": "rigid"}, scene="impact")
+    free = ref.simulate_reference({"drive": "free", "m2": 5.0}, scene="impact")
+    assert rigid["peak_force"] / free["peak_force"] == pytest.approx(1.74, abs=0.01)
+    # free fence: momentum shared, so the impulse is below m1 w (1 + e)
+    assert free["impulse"] < 15.0 * 2.0 * 1.2
+
+
+# --- §1 input checks --------------------------------------------------------------------
+
+def test_invalid_starts_name_the_parameter():
+    with pytest.raises(ValueError, match="R_s"):
+        ref.simulate_reference({"R_s": 1.2})
+    with pytest.raises(ValueError, match="dP"):
+        ref.simulate_reference({"case": "small_far", "dP": 0.65})
+    with pytest.raises(ValueError, match="nonsense"):
+        ref.simulate_reference({"nonsense": 1.0})
+
+
+# --- cycle ------------------------------------------------------------------------------
+
+def test_free_ride_escape_time_closed_form():
+    # no contact (load passes before the fence rises): it rides with the belt and
+    # escapes when its rear corner passes x = l: t = (l - (R_s - L)) / v
+    r = ref.simulate_reference({"case": "small_far", "v": 3.0, "drive": "rigid"}, rtol=1e-8)
+    assert r["outcome"] == "escaped" and r["n_impacts"] == 0
+    assert r["t_exit"] == pytest.approx((1.2 + 0.2) / 3.0, rel=1e-10)
+    assert r["peak_force"] == 0.0 and r["contact_energy"] == 0.0
+
+
+def test_small_far_rigid_overload_042():
+    # MODEL.md §12: rigid fence, swing 42 deg, small_far: overload 0.97
+    r = ref.simulate_reference({"case": "small_far", "drive": "rigid"}, rtol=1e-8)
+    assert r["outcome"] == "scraped"
+    assert r["overload"] == pytest.approx(0.97, abs=0.005)
+    assert r["deflection_max"] == 0.0 and r["damper_energy"] == 0.0
+    assert r["alpha_max"] == pytest.approx(0.733, abs=1e-9)
+
+
+def test_paper_flexible_fence_contacts_longer_and_carries_further():
+    # MODEL.md §13.6 for both unfavourable loads
+    for case in ("small_far", "long_near"):
+        flex = ref.simulate_reference({"case": case}, rtol=1e-7)
+        rig = ref.simulate_reference({"case": case, "drive": "rigid"}, rtol=1e-7)
+        assert flex["outcome"] == rig["outcome"] == "scraped"
+        assert flex["contact_time"] > rig["contact_time"]
+        assert flex["x_exit"] > rig["x_exit"]
+        assert 0.0 < flex["deflection_max"] < 0.2618
+        assert flex["peak_force"] < rig["peak_force"]
+
+
+def test_cycle_converges_with_tolerance_and_methods():
+    a = ref.simulate_reference({"case": "small_far"}, rtol=1e-6)
+    b = ref.simulate_reference({"case": "small_far"}, rtol=1e-9)
+    assert a["peak_force"] == pytest.approx(b["peak_force"], rel=1e-5)
+    assert a["t_exit"] == pytest.approx(b["t_exit"], rel=1e-6)
+    assert a["contact_energy"] == pytest.approx(b["contact_energy"], rel=1e-4)
+    for m in ("RK45", "LSODA", "Radau"):
+        c = ref.simulate_reference({"case": "small_far"}, rtol=1e-6, method=m)
+        assert c["status"] == "ok"
+        assert c["peak_force"] == pytest.approx(b["peak_force"], rel=1e-4)
+
+
+def test_friction_regularisation_converges():
+    a = ref.simulate_reference({"case": "small_far", "eps_v": 1e-3}, rtol=1e-8)
+    b = ref.simulate_reference({"case": "small_far", "eps_v": 1e-5}, rtol=1e-8)
+    assert a["peak_force"] == pytest.approx(b["peak_force"], rel=1e-3)
+    assert a["t_exit"] == pytest.approx(b["t_exit"], rel=1e-3)
