@@ -26,8 +26,10 @@ import contextlib
 import hashlib
 import json
 import math
+import os
 import shutil
 import sys
+import threading
 import time
 from collections import OrderedDict
 from dataclasses import dataclass, field
@@ -168,8 +170,30 @@ def run_models(scene: str, vals_list: list, simulate: Callable | None = None) ->
     return rows
 
 
-def _run_chunk(c: int, scene: str, model_ids: list, vals_list: list, simulate: Callable | None):
+def _run_chunk(c: int, scene: str, model_ids: list, vals_list: list, simulate: Callable | None,
+               parent: int | None = None):
+    if parent is not None:
+        _watch_parent(parent)
     return c, model_ids, run_models(scene, vals_list, simulate)
+
+
+_WATCHING = False
+
+
+def _watch_parent(parent: int) -> None:
+    """In a local worker process: exit when the sweep's process is gone (killed with SIGKILL),
+    instead of lingering blocked on a result pipe that nobody reads."""
+    global _WATCHING
+    if _WATCHING or os.getpid() == parent or os.getppid() != parent:
+        return  # in the sweep's own process, or not its child (a Dask worker): nothing to watch
+    _WATCHING = True
+
+    def watch():
+        while os.getppid() == parent:
+            time.sleep(1.0)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="fencesweep-watch-parent", daemon=True).start()
 
 
 def work_root(out: Path) -> Path:
@@ -330,7 +354,8 @@ def run_sweep(spec: S.Spec | str | Path, out: str | Path | None = None, jobs: in
         def tasks():
             for c in pending:
                 ids = list(plan.chunk_models(c))
-                yield joblib.delayed(_run_chunk)(c, spec.scene, ids, [plan.model_vals(m) for m in ids], simulate)
+                yield joblib.delayed(_run_chunk)(c, spec.scene, ids, [plan.model_vals(m) for m in ids], simulate,
+                                                 os.getpid() if backend == "loky" else None)
 
         try:
             with _backend(backend, scheduler):
