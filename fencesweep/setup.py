@@ -107,8 +107,8 @@ def _step_sizes(p: np.ndarray, vals: dict) -> None:
     load (effective mass >= m1/4: for any point of a rectangle m1 r^2 / I1 <= 3) against the
     fence tip (effective mass I2 / l^2), at the largest closing speed v + l max|alpha_w'|,
     divided by STEPS_PER_PULSE. Coarse: the largest step that still resolves the drive and
-    the fence's own linear dynamics (t_c/200, a 60th of its natural period, half its
-    damping time), and never below the fine step.
+    the fence's own linear dynamics (t_c/200, a 60th of its natural period, a quarter
+    of its damping time), and never below the fine step.
     """
     sf = vals["step_factor"]
     m1 = vals["m1"]
@@ -123,7 +123,7 @@ def _step_sizes(p: np.ndarray, vals: dict) -> None:
         if vals["K2"] > 0:
             dt_coarse = min(dt_coarse, 2 * math.pi * math.sqrt(vals["I2"] / vals["K2"]) / 60.0)
         if vals["B2"] > 0:
-            dt_coarse = min(dt_coarse, 0.5 * vals["I2"] / vals["B2"])
+            dt_coarse = min(dt_coarse, 0.25 * vals["I2"] / vals["B2"])
     p[Lp.M_RED] = m_red
     p[Lp.DT_FINE] = sf * dt_fine
     p[Lp.DT_COARSE] = sf * max(dt_coarse, dt_fine)

@@ -193,12 +193,15 @@ def test_energy_balance_closes(case):
 
 
 def test_results_converge_as_friction_regularisation_vanishes():
-    rs = [simulate(case="small_far", eps_v=eps) for eps in (1e-2, 1e-3, 1e-4)]
+    # MODEL.md §5: results must converge as eps_v -> 0. Each tenfold smaller eps_v changes
+    # the results less (up to the integrator's own error, ~1e-6 here at step_factor 0.2).
+    rs = [simulate(case="small_far", eps_v=eps, step_factor=0.2) for eps in (1e-2, 1e-3, 1e-4)]
     for key in ("peak_force", "x_exit", "t_exit", "deflection_max"):
+        scale = abs(rs[2][key])
         d1 = abs(rs[1][key] - rs[0][key])
         d2 = abs(rs[2][key] - rs[1][key])
-        assert d2 <= d1 + 1e-12 * abs(rs[2][key])
-        assert d2 < 2e-3 * abs(rs[2][key])
+        assert d2 <= d1 + 1e-5 * scale
+        assert d2 < 2e-3 * scale
 
 
 @pytest.mark.parametrize("case", ["small_far", "long_near"])

@@ -3,7 +3,7 @@
 State y (N_STATE = 13):
   0-5  load x, y, phi, x', y', omega                       (MODEL.md §1)
   6-7  fence alpha, alpha'                                  (§3; overwritten by alpha_w when kinematic)
-  8    damper energy  int B2 (alpha_w' - alpha')^2 dt over [0, t_c]         (§11)
+  8    damper energy  int B2 (alpha_w' - alpha')^2 dt (the result is its value at t_c, §11)
   9    contact energy int sum (N - N_el) D' dt                              (§11)
   10   drive work     int T_lever alpha_w' dt (T_lever the element's torque; rigid: -tau alpha_w')
   11   belt work      int (F . v + M omega) dt  (work of belt friction on the load)
@@ -234,7 +234,7 @@ def rhs(t, y, p, iw, dy, aux):
         dy[6] = dal
         dy[7] = (torque + tau) / p[Lp.I2]
         p_drive = torque * daw
-    dy[8] = p_damp if t < p[Lp.TC] else 0.0
+    dy[8] = p_damp  # read at t_c, where a step always ends (MODEL.md §11: over [0, t_c])
     dy[9] = p_diss
     dy[10] = p_drive
     dy[11] = p_belt
@@ -451,9 +451,9 @@ def outcome_margin(kind, y, p):
 
 
 @njit(cache=True)
-def proximity(t, y, p, iw, margin):
+def proximity(t, y, p, iw, margin, rail):
     """A lower bound on the distance [m] from the load to any contact (fence line near the
-    fence's span, fence tip, rail). Negative when a contact is penetrated."""
+    fence's span, fence tip and, if `rail`, the rail). Negative when a contact is penetrated."""
     al, dal, aw, daw = fence_state(t, y, p, iw[IW_MODE])
     ca = math.cos(al)
     sa = math.sin(al)
@@ -471,7 +471,7 @@ def proximity(t, y, p, iw, margin):
         if s >= -margin and s <= fl + margin:
             h = -gx * sa + gy * ca
             gap = min(gap, iw[j] * h)
-        if gx <= margin:
+        if rail and gx <= margin:
             gap = min(gap, gy)
     dx = fl * ca - y[0]
     dyy = fl * sa - y[1]
@@ -598,6 +598,7 @@ def cycle_kernel(p, out, traj):
     n_impacts = 0
     dmax_all = 0.0
     residual = math.nan
+    e_damper = math.nan
     outcome = Rs.TIMEOUT
     status = Rs.ST_OK
     t_exit = tmax
@@ -621,14 +622,15 @@ def cycle_kernel(p, out, traj):
     c_stab = min(C_STAB, C_STAB * p[Lp.STEPF])
     while True:
         t_end = tmax if not exited else tc
-        if t >= t_end * (1.0 - 1e-15) or steps >= max_steps:
+        if t >= t_end - 1e-12 * max(1.0, t_end) or steps >= max_steps:
             if steps >= max_steps:
                 status = Rs.ST_MAXSTEPS
             break
         # ---- choose the step ----
         if phase == 0:
             margin = (v + p[Lp.FL] * p[Lp.DAW_MAX]) * dt_c * 2.0
-            if iw[IW_LOAD] != 0 and proximity(t, y, p, iw, margin) < margin:
+            # the load rides the belt in closed form (y constant): only the fence can reach it
+            if iw[IW_LOAD] != 0 and proximity(t, y, p, iw, margin, False) < margin:
                 phase = 1
         if exited:
             h = dt_c
@@ -638,7 +640,7 @@ def cycle_kernel(p, out, traj):
             speed = math.sqrt(y[3] ** 2 + y[4] ** 2) + abs(y[5]) * r_load \
                 + p[Lp.FL] * (abs(y[7]) + p[Lp.DAW_MAX])
             margin = 2.0 * speed * dt_c
-            gap = proximity(t, y, p, iw, margin) if mask0 == 0 else 0.0
+            gap = proximity(t, y, p, iw, margin, True) if mask0 == 0 else 0.0
             if mask0 == 0 and gap >= margin:
                 h = dt_c  # no contact within reach of a coarse step
             elif mask0 == 0:
@@ -711,8 +713,8 @@ def cycle_kernel(p, out, traj):
             rate = abs(n_new - n_old) / h
             h_force = eta * (max(n_new, n_old) + n_floor) / rate if rate > 0.0 else math.inf
             n_old = n_new
-        if t1 >= tc and t < tc:
-            t1 = tc if abs(t1 - tc) < 1e-12 else t1
+        if t < tc and abs(t1 - tc) < 1e-12 * max(1.0, tc):
+            t1 = tc  # steps end on t_c exactly (residual deflection, damper energy)
         mask1 = int(aux[AX_MASK]) if iw[IW_LOAD] != 0 else 0
         # ---- failure checks (MODEL.md §5) ----
         finite = True
@@ -771,6 +773,7 @@ def cycle_kernel(p, out, traj):
         if t1 == tc:
             al, dal, aw, daw = fence_state(tc, y1, p, iw[IW_MODE])
             residual = abs(al - aw)
+            e_damper = y1[8]
         # ---- outcome events (MODEL.md §9), located inside the step ----
         if not exited:
             kind = -1
@@ -847,7 +850,7 @@ def cycle_kernel(p, out, traj):
     out[Rs.RC_DEFLECTION_MAX] = qmax[Q_DEFL]
     out[Rs.RC_RESIDUAL_DEFLECTION] = residual
     out[Rs.RC_ALPHA_MAX] = qmax[Q_ALPHA]
-    out[Rs.RC_DAMPER_ENERGY] = y[8]
+    out[Rs.RC_DAMPER_ENERGY] = e_damper if not math.isnan(e_damper) else y[8]
     out[Rs.RC_CONTACT_ENERGY] = e_contact
     out[Rs.RC_T_FIRST_CONTACT] = t_first
     if math.isnan(t_first):
