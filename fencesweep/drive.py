@@ -68,7 +68,7 @@ def _beta_unwrapped(theta: float, a: float, b: float, d: float, ref: float) -> f
 @lru_cache(maxsize=256)
 def crank_rocker_geometry(swing: float, coupler_ratio: float) -> tuple[float, float, float, float, float]:
     """(a, b, d, theta0, beta0): link lengths and the crank angle of minimum rocker angle."""
-    from scipy.optimize import minimize_scalar
+    from scipy.optimize import brentq
 
     a = math.sin(swing / 2)
     b = coupler_ratio
@@ -79,10 +79,9 @@ def crank_rocker_geometry(swing: float, coupler_ratio: float) -> tuple[float, fl
     vals = [_beta_unwrapped(th, a, b, d, ref) for th in thetas]
     i = min(range(n), key=vals.__getitem__)
     h = 2 * math.pi / n
-    res = minimize_scalar(lambda th: _beta_unwrapped(th, a, b, d, ref), bracket=None,
-                          bounds=(thetas[i] - h, thetas[i] + h), method="bounded",
-                          options={"xatol": 1e-14})
-    theta0 = float(res.x)
+    # the minimum is the root of d beta / d theta bracketed by the grid neighbours
+    theta0 = brentq(lambda th: rocker_angle(th, a, b, d)[1], thetas[i] - h, thetas[i] + h,
+                    xtol=1e-15, rtol=1e-15)
     beta0 = rocker_angle(theta0, a, b, d)[0]
     return a, b, d, theta0, beta0
 

@@ -668,6 +668,8 @@ def cycle_kernel(p, out, traj):
             # the load rides the belt in closed form (or has left): step the fence alone
             iw[IW_LOAD] = 0
             rhs(t, y, p, iw, f0, aux)
+            if not exited:
+                f0[0] = v  # the closed-form ride, for the step's Hermite interpolant
             rk4_step(t, y, f0, h, p, iw, y1, f1, aux, k2, k3, k4, tmp)
             if not exited:
                 iw[IW_LOAD] = 1
