@@ -13,7 +13,7 @@ from numba import njit
 from . import layout as Lp
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def normal_force(D, Dd, kc, cd, law):
     """Normal force N and its elastic part N_el [N] for penetration D [m] and rate Dd [m/s].
 
@@ -32,14 +32,14 @@ def normal_force(D, Dd, kc, cd, law):
     return n, n_el
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def coulomb(N, w, mu, eps):
     """Regularised Coulomb friction force [N] against the slip w [m/s] (MODEL.md §5):
     -mu N w / sqrt(w^2 + eps^2)."""
     return -mu * N * w / math.sqrt(w * w + eps * eps)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def belt_friction(ux, uy, om, fmax, mmax, rho, eps):
     """Goyal-Ruina ellipse (paper eq. A9, MODEL.md §6): slip u = (ux, uy) [m/s], spin om [rad/s].
 

@@ -53,7 +53,8 @@ DT_COARSE = 43  # step while no contact is near
 DT_FINE = 44  # step that resolves the impact pulse
 DAW_MAX = 45  # max |d alpha_w / dt| (for contact-proximity bounds)
 M_RED = 46  # smallest effective mass of a load-fence pairing (step bounds)
-N_P = 47
+TAB_N = 47  # number of intervals of the crank-rocker table (0 for the harmonic profile)
+N_P = 48  # length of the header; the crank-rocker table follows it (drive.py)
 
 # law / drive / profile codes
 LAW_HERTZ, LAW_LINEAR = 0, 1

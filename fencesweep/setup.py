@@ -14,7 +14,7 @@ import numpy as np
 from . import layout as Lp
 from .contact import (damping_coefficient, derived_k_lin, drop_speed, hertz_contact_time,
                       mean_footprint_radius)
-from .drive import crank_rocker_geometry, max_drive_rate
+from .drive import TABLE_SIZE, crank_rocker_geometry, max_drive_rate, rocker_table
 
 _LAW = {"hertz": Lp.LAW_HERTZ, "linear": Lp.LAW_LINEAR}
 _DRIVE = {"flexible": Lp.DRIVE_FLEXIBLE, "rigid": Lp.DRIVE_RIGID, "free": Lp.DRIVE_FREE}
@@ -97,6 +97,9 @@ def prepare(vals: dict) -> np.ndarray:
     p[Lp.FFORCE] = freefall_force(float(m1), float(vals["k1"]), float(vals["e"]), vals["contact_law"],
                                   None if vals["k_lin"] is None else float(vals["k_lin"]), float(vals["H"]))
     _step_sizes(p, vals)
+    if vals["profile"] == "crank_rocker":
+        p[Lp.TAB_N] = TABLE_SIZE
+        return np.concatenate((p, rocker_table(float(vals["swing"]), float(vals["coupler_ratio"]))))
     return p
 
 

@@ -64,3 +64,15 @@ def test_rocker_pin_is_on_both_circles_and_left_of_the_line():
         assert math.hypot(bx - ax, by - ay) == pytest.approx(b, abs=1e-12)
         # left of the directed line from A to (d, 0): positive cross product
         assert (d - ax) * (by - ay) - (0 - ay) * (bx - ax) > 0
+
+
+def test_drive_table_matches_the_exact_four_bar():
+    # the kernel interpolates a table of beta(theta); compare with the closed-form linkage
+    for swing, ratio, tc in [(0.733, 2.5, 1.36), (1.2, 1.3, 0.9)]:
+        p = _p(swing, ratio, tc)
+        a, b, d, th0, b0 = crank_rocker_geometry(swing, ratio)
+        for t in np.random.default_rng(3).uniform(0, tc, 500):
+            beta, dbeta = rocker_angle(th0 + 2 * math.pi * t / tc, a, b, d)
+            aw, daw = drive_angle(t, p)
+            assert aw == pytest.approx(math.remainder(beta - b0, 2 * math.pi), abs=1e-10)
+            assert daw == pytest.approx(dbeta * 2 * math.pi / tc, abs=1e-8)

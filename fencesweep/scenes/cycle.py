@@ -58,7 +58,7 @@ PULSE_WINDOW = 1.5  # fine steps for this many reference pulse times after an on
 STEPS_PER_PULSE_REF = 40.0  # setup.STEPS_PER_PULSE: dt_fine * this = the reference pulse time
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def corner_offset(j, hl, hw, cphi, sphi):
     """Offset of corner j from the centroid: local (+-L/2, +-A/2) rotated by phi (MODEL.md §1)."""
     lx = hl if (j == 0 or j == 3) else -hl
@@ -66,7 +66,7 @@ def corner_offset(j, hl, hw, cphi, sphi):
     return cphi * lx - sphi * ly, sphi * lx + cphi * ly
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def fence_state(t, y, p, mode):
     """(alpha, alpha', alpha_w, alpha_w'): the fence follows alpha_w when kinematic (§3)."""
     aw, daw = drive_angle(t, p)
@@ -88,7 +88,9 @@ def rhs(t, y, p, iw, dy, aux):
     law = p[Lp.LAW]
     mu2 = p[Lp.MU2]
     eps = p[Lp.EPSV]
-    m_red = p[Lp.M_RED]
+    inv_m1 = 1.0 / p[Lp.M1]
+    inv_i1 = 1.0 / p[Lp.I1]
+    inv_i2 = 1.0 / p[Lp.I2] if mode != FM_KINEMATIC else 0.0  # a kinematic fence: infinite mass
     nf = 0.0
     nr = 0.0
     dmax = 0.0
@@ -142,7 +144,11 @@ def rhs(t, y, p, iw, dy, aux):
                 if n > 0.0:
                     mask |= 1 << j
                     ddmax = max(ddmax, Dd)
-                    stiff = _contact_stiffness(stiff, D, n, wsl, kc, cd, law, mu2, eps, m_red)
+                    arm_n = rx * ca + ry * sa  # r x n
+                    arm_t = rx * sa - ry * ca  # r x d
+                    stiff += _contact_rate(D, n, wsl, kc, cd, law, mu2, eps,
+                                           inv_m1 + arm_n * arm_n * inv_i1 + s * s * inv_i2,
+                                           inv_m1 + arm_t * arm_t * inv_i1)
                 if D > dmax:
                     dmax = D
             # corner-rail (MODEL.md §5.3)
@@ -160,7 +166,8 @@ def rhs(t, y, p, iw, dy, aux):
                 if n > 0.0:
                     mask |= 1 << (4 + j)
                     ddmax = max(ddmax, Dd)
-                    stiff = _contact_stiffness(stiff, D, n, gvx, kc, cd, law, mu2, eps, m_red)
+                    stiff += _contact_rate(D, n, gvx, kc, cd, law, mu2, eps,
+                                           inv_m1 + rx * rx * inv_i1, inv_m1 + ry * ry * inv_i1)
                 if D > dmax:
                     dmax = D
         # tip-edge (MODEL.md §5.2): the tip T inside the load rectangle
@@ -207,7 +214,13 @@ def rhs(t, y, p, iw, dy, aux):
             if n > 0.0:
                 mask |= 1 << 8
                 ddmax = max(ddmax, Dd)
-                stiff = _contact_stiffness(stiff, D, n, wl, kc, cd, law, mu2, eps, m_red)
+                arm_n = dx * ney - dyy * nex
+                arm_t = dx * tey - dyy * tex
+                n_dot = -nex * sa + ney * ca  # share of the edge normal along the fence normal
+                t_dot = -tex * sa + tey * ca
+                stiff += _contact_rate(D, n, wl, kc, cd, law, mu2, eps,
+                                       inv_m1 + arm_n * arm_n * inv_i1 + n_dot * n_dot * fl * fl * inv_i2,
+                                       inv_m1 + arm_t * arm_t * inv_i1 + t_dot * t_dot * fl * fl * inv_i2)
             if D > dmax:
                 dmax = D
         dy[0] = vx
@@ -248,10 +261,13 @@ def rhs(t, y, p, iw, dy, aux):
     aux[AX_DDMAX] = ddmax
 
 
-@njit(cache=True)
-def _contact_stiffness(stiff, D, n, w, kc, cd, law, mu, eps, m_red):
-    """Largest local rate [1/s] of an active contact: c/m + sqrt(k/m) of the normal law and
-    the slope of the regularised friction, mu N eps^2 / (w^2 + eps^2)^1.5 / m."""
+@njit(cache=True, inline="always")
+def _contact_rate(D, n, w, kc, cd, law, mu, eps, inv_mn, inv_mt):
+    """Largest local rate [1/s] of one active contact, for the step's stability bound:
+    c/m + sqrt(k/m) of the normal law (k = dN/dD, c = dN/dD') with m the pair's effective
+    mass along the normal (1/m = inv_mn), plus the slope of the regularised friction,
+    mu N eps^2 / (w^2 + eps^2)^1.5, over the effective mass along the slip (1/m = inv_mt).
+    The rates of all contacts are summed: the trace bounds the stiffest coupled mode."""
     if law == Lp.LAW_HERTZ:
         rd = math.sqrt(D)
         k = 1.5 * kc * rd
@@ -259,13 +275,11 @@ def _contact_stiffness(stiff, D, n, w, kc, cd, law, mu, eps, m_red):
     else:
         k = kc
         c = cd
-    lam = c / m_red + math.sqrt(k / m_red)
     ww = w * w + eps * eps
-    lam_f = mu * n * eps * eps / (ww * math.sqrt(ww)) / m_red
-    return max(stiff, lam, lam_f)
+    return c * inv_mn + math.sqrt(k * inv_mn) + mu * n * eps * eps / (ww * math.sqrt(ww)) * inv_mt
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _pulse(w, p):
     """Undamped pulse time [s] and peak force [N] of an impact at closing speed w [m/s] for
     the smallest effective mass (MODEL.md §7 closed forms): Hertz 3.2181 (m^2/(k1^2 w))^0.2
@@ -343,7 +357,7 @@ def _cut_at_contact_change(t, y, f0, h, y1, f1, mask0, p, iw, aux, k2, k3, k4, t
     return hc, t + hc
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _pin_kinematic(t, y, p, iw):
     """A kinematic fence is alpha_w itself: write it into the state (for output only)."""
     if iw[IW_MODE] == FM_KINEMATIC:
@@ -410,7 +424,7 @@ def refine_max(kind, ta, ya, fa, tb, yb, fb, tc_, yc, fc, qb, p, iw, tmp, dy, au
     return max(best, q1, q2)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def stage_of(mask):
     """Stage of MODEL.md §10 from the set of active contacts."""
     nfc = 0
