@@ -116,14 +116,14 @@ def _fig_impact(res: Path, out: Path, law: str) -> Path:
                 ax.plot([first["dt_onset"] * 1e3], [first["N_onset"] / 1e3], "o", ms=4, color=color)
         ff = rigid.attrs["results"]["freefall_force"] / 1e3
         ax.axhline(ff, color="0.4", lw=0.8, ls=":")
-        ax.text(window * 1e3, ff, f"free fall from H = 0.3 m (e = 0.2): {ff:.1f} kN", ha="right", va="bottom",
-                fontsize=7, color="0.3")
+        ax.text(0.02, ff, f"free fall from H = 0.3 m (e = 0.2): {ff:.1f} kN", ha="left", va="bottom",
+                fontsize=7, color="0.3", transform=ax.get_yaxis_transform())
         ax.set_xlim(-0.1 * window * 1e3, window * 1e3)
         ax.set_ylim(0, 1.15 * max(ff, ax.get_ylim()[1]))
         ax.set_xlabel("time since first contact A, t - t_A [ms]")
         ax.set_ylabel("normal force of the load on the fence N [kN]")
         ax.grid(alpha=0.3)
-        ax.legend(loc="upper right", bbox_to_anchor=(1.0, 0.93))
+        ax.legend(loc="upper right", bbox_to_anchor=(1.0, 0.8))
     extra = " Dots: the force at the first integrator step after contact (the jump of the linear law)." \
         if law == "linear" else ""
     fig.suptitle(f"Paper Fig. {'2' if law == 'linear' else '3'}: force of the first impact, {law_text}\n"
