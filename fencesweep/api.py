@@ -37,7 +37,10 @@ def simulate_resolved(vals: dict, trajectory: bool = False):
     """Run an already-resolved parameter set (params.resolve).
 
     Returns (results dict, trajectory DataFrame or None). The trajectory (cycle only) has
-    the columns of scenes.cycle.TRAJ_COLUMNS, one row per integrator step.
+    the columns of scenes.cycle.TRAJ_COLUMNS (units in df.attrs["units"]), one row per
+    integrator step: time, load pose and velocities, alpha, alpha_w, alpha_dot (the fence's
+    rate), fence and rail normal forces, the moment of the load on the fence, the stage and
+    the energy integrals (damper, contact damping, drive work, belt work, contact friction).
     """
     from .setup import prepare, impact_step
     from .contact import drop_speed
@@ -45,7 +48,7 @@ def simulate_resolved(vals: dict, trajectory: bool = False):
     p = prepare(vals)
     scene = vals["scene"]
     if scene == "cycle":
-        from .scenes.cycle import TRAJ_COLUMNS, cycle_kernel
+        from .scenes.cycle import TRAJ_COLUMNS, TRAJ_UNITS, cycle_kernel
 
         out = np.empty(N_CYCLE_RESULTS)
         cap = trajectory_capacity(p) if trajectory else 0
@@ -57,7 +60,8 @@ def simulate_resolved(vals: dict, trajectory: bool = False):
         import pandas as pd
 
         df = pd.DataFrame(traj[:rows], columns=list(TRAJ_COLUMNS))
-        df["stage"] = df["stage"].astype("int8")
+        df["stage"] = df["stage"].astype("int8")  # 0 S1, 1 S2, 2 S3, 3 S4, 4 rail, -1 after exit
+        df.attrs["units"] = dict(zip(TRAJ_COLUMNS, TRAJ_UNITS))
         return res, df
     from .scenes.impact import impact_kernel
 

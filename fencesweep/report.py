@@ -409,7 +409,7 @@ def write_report(res: Path = Path("results"), residual_max_deg: float = RESIDUAL
     def rate_at_contact(name):
         df = T[name]
         i = max(int(np.searchsorted(df["t"].to_numpy(), events(df).A)) - 1, 0)
-        return math.degrees(float(df["dalpha"].iloc[i]))  # trajectory column dalpha is the fence rate alpha'
+        return math.degrees(float(df["alpha_dot"].iloc[i]))
 
     rate_f, rate_r = rate_at_contact("small_far_flexible_linear"), rate_at_contact("small_far_rigid_linear")
     f_lin = frac_at("small_far_rigid_linear", "linear", 1e-5)
@@ -626,7 +626,7 @@ def write_report(res: Path = Path("results"), residual_max_deg: float = RESIDUAL
                 rows.append(f"| {what} | {pr['B2']:g} / {pr['K2']:g} | {P.relative_damping(pr['B2'], pr['K2'], pr['I2']):.2f} "
                             f"| {c} | {rr['outcome']} | {rr['overload']:.3f} | {math.degrees(rr['deflection_max']):.1f} | "
                             f"{lo:+.1f} / {hi:+.1f} | {math.degrees(rr['residual_deflection']):.2f} | "
-                            f"{math.degrees(float(df['dalpha'].iloc[-1])):.1f} | {rr['contact_time']:.3f} | {rr['x_exit']:.3f} |")
+                            f"{math.degrees(float(df['alpha_dot'].iloc[-1])):.1f} | {rr['contact_time']:.3f} | {rr['x_exit']:.3f} |")
         if rows:
             w("The three elements run as single cycles (`recommended.png`):")
             w("")
@@ -769,8 +769,6 @@ def write_report(res: Path = Path("results"), residual_max_deg: float = RESIDUAL
     w("* `residual_deflection` is |alpha - alpha_w| at t_c, one snapshot: for a lightly damped element it can be "
       "small by the phase of a swing that has not died out. A residual amplitude (deflection and rate at t_c "
       "combined) would be the sturdier criterion; it needs a result the engine does not give yet.")
-    w("* Trajectory column `dalpha` is the fence's angular velocity alpha' (rad/s), not the deflection; the "
-      "figures compute the deflection as alpha - alpha_w.")
     w("")
     out.write_text("\n".join(L) + "\n")
     return out

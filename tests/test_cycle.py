@@ -177,7 +177,7 @@ def test_energy_balance_closes(case):
     bal, pens = [], []
     for row in live.itertuples():
         pen = _penetrations(row, vals)
-        e = (0.5 * m1 * (row.vx ** 2 + row.vy ** 2) + 0.5 * I1 * row.omega ** 2 + 0.5 * I2 * row.dalpha ** 2
+        e = (0.5 * m1 * (row.vx ** 2 + row.vy ** 2) + 0.5 * I1 * row.omega ** 2 + 0.5 * I2 * row.alpha_dot ** 2
              + 0.5 * K2 * (row.alpha_w - row.alpha) ** 2 + sum(vals["k1"] * d ** 2.5 / 2.5 for d in pen.values()))
         bal.append((e - e0) - (row.W_drive + row.W_belt - row.E_damper - row.E_contact - row.E_friction))
         pens.append(pen)

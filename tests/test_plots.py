@@ -76,7 +76,7 @@ def _trajectory(case: str, over: dict) -> tuple[pd.DataFrame, dict, dict]:
     x0 = vals["R_s"] - vals["L"] / 2
     df = pd.DataFrame(dict(t=t, x=x0 + vals["v"] * np.minimum(t, tx), y=vals["dP"] + vals["A"] / 2 + 0.1 * (t > A) * np.minimum(t - A, tx - A),
                            phi=0.0, vx=vals["v"], vy=0.0, omega=0.0, alpha=al, alpha_w=aw,
-                           dalpha=np.gradient(al, t), N_fence=nf, N_rail=nr, M_fence=nf * 0.9, stage=stage,
+                           alpha_dot=np.gradient(al, t), N_fence=nf, N_rail=nr, M_fence=nf * 0.9, stage=stage,
                            E_damper=0.0, E_contact=0.0, W_drive=0.0, W_belt=0.0, E_friction=0.0))
     res = dict(outcome="scraped", t_exit=tx, peak_force=float(nf.max()), freefall_force=6414.0,
                overload=float(nf.max()) / 6414.0, deflection_max=0.05, residual_deflection=0.02,

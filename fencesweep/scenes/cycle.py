@@ -42,9 +42,11 @@ AX_NF, AX_NR, AX_DMAX, AX_MASK, AX_TAU, AX_STIFF, AX_DDMAX, N_AUX = 0, 1, 2, 3, 
 FENCE_BITS = 0x10F
 RAIL_BITS = 0xF0
 # trajectory columns
-TRAJ_COLUMNS = ("t", "x", "y", "phi", "vx", "vy", "omega", "alpha", "alpha_w", "dalpha",
+TRAJ_COLUMNS = ("t", "x", "y", "phi", "vx", "vy", "omega", "alpha", "alpha_w", "alpha_dot",
                 "N_fence", "N_rail", "M_fence", "stage",
                 "E_damper", "E_contact", "W_drive", "W_belt", "E_friction")
+TRAJ_UNITS = ("s", "m", "m", "rad", "m/s", "m/s", "rad/s", "rad", "rad", "rad/s", "N", "N", "N m", "-",
+              "J", "J", "J", "J", "J")
 N_TRAJ = len(TRAJ_COLUMNS)
 # quantities whose maxima are located inside the step
 Q_NF, Q_NR, Q_DEFL, Q_ALPHA = 0, 1, 2, 3
