@@ -11,8 +11,9 @@
    carries a digest of the spec hash, the package's source hash, its chunk size and the
    model keys of its runs, so a changed spec or engine never reuses a stale chunk.
 3. Pending chunks run in parallel through joblib (loky locally, or Dask); each finished
-   chunk is written atomically into the work directory `OUT.partial/` beside the output. A
-   killed sweep, rerun, computes only the chunks that are missing.
+   chunk is written atomically into the work directory `OUT.partial/` beside the output
+   (by the local worker that ran it, so results never queue up in the parent; with Dask by
+   the client). A killed sweep, rerun, computes only the chunks that are missing.
 4. The table is assembled block by block from the chunks (rows in scene order) into one
    Parquet file, atomically; then the work directory is removed.
 
@@ -45,8 +46,8 @@ from . import store
 #: chunk size rule: chunks of about CHUNK_SECONDS of work, at least MIN_CHUNKS of them.
 #: A chunk costs ~0.6-2 ms of dispatch and ~2-15 ms to write (benchmarks/sweep_dispatch.py),
 #: i.e. < 1.5 % of one second; MIN_CHUNKS keeps small sweeps balanced and resumable.
-CHUNK_SECONDS, MIN_CHUNKS, CHUNK_MAX = 1.0, 16, 100_000
-ASSEMBLY_BLOCK = 65_536  # rows per Parquet row group of the final table
+CHUNK_SECONDS, MIN_CHUNKS, CHUNK_MAX = 1.0, 16, 2_000  # CHUNK_MAX bounds the memory in flight
+ASSEMBLY_BLOCK = 16_384  # rows per Parquet row group of the final table
 CHUNK_CACHE = 8  # chunks held in memory while assembling
 _CHOICES = tuple(p.name for p in P.TABLE if p.kind == "choice")
 
@@ -103,13 +104,16 @@ class Plan:
 
 
 def make_plan(spec: S.Spec, progress: bool = False) -> Plan:
-    """Resolve every scene (raising SpecError on the first bad one) and deduplicate the runs."""
+    """Resolve every scene (raising SpecError on the first bad one) and deduplicate the runs.
+
+    Memory: 16 bytes of model-key digest per scene while planning (about 60 at the
+    np.unique), then 8 (its model number); no Python object per scene is kept.
+    """
     n = spec.n_scenes
-    row_model = np.empty(n, dtype=np.int64)
-    index: dict = {}
-    first_row: list = []
-    digests = bytearray()
-    variants: dict = {}
+    keys = np.zeros(n, dtype="V16")  # blake2b digest of each scene's model key
+    kbuf = keys.view(np.uint8)
+    valid = np.ones(n, dtype=bool)
+    variants_row: dict = {}
     skipped, examples = 0, []
     bar = _bar(n, "checking", progress and n > 20_000)
     for i in range(n):
@@ -117,7 +121,7 @@ def make_plan(spec: S.Spec, progress: bool = False) -> Plan:
             vals = spec.resolve(i)
         except P.ParameterError as exc:
             if spec.invalid == "skip":
-                row_model[i] = -1
+                valid[i] = False
                 skipped += 1
                 if len(examples) < 3:
                     examples.append(f"{spec.describe(i)}: {exc}")
@@ -125,23 +129,27 @@ def make_plan(spec: S.Spec, progress: bool = False) -> Plan:
             bar.close()
             raise S.SpecError(f"{spec.describe(i)}: {exc}") from None
         d = hashlib.blake2b(repr(P.model_key(vals)).encode(), digest_size=16).digest()
-        m = index.get(d)
-        if m is None:
-            m = index[d] = len(first_row)
-            first_row.append(i)
-            digests += d
-            variants.setdefault((spec.scene,) + tuple(vals[c] for c in _CHOICES), m)
-        row_model[i] = m
+        kbuf[16 * i:16 * i + 16] = np.frombuffer(d, dtype=np.uint8)
+        variants_row.setdefault((spec.scene,) + tuple(vals[c] for c in _CHOICES), i)
         if (i & 4095) == 4095:
             bar.update(4096)
     bar.close()
-    if not first_row:
+    if skipped == n:
         raise S.SpecError(f"every one of the {n} scenes is invalid (invalid: skip); e.g. {examples[0]}")
-    chunk = spec.chunk_size
+    rows = np.nonzero(valid)[0]
+    uniq, first, inverse = np.unique(keys[rows], return_index=True, return_inverse=True)
+    del keys, kbuf
+    order = np.argsort(first, kind="stable")  # model runs numbered in order of first appearance
+    rank = np.empty_like(order)
+    rank[order] = np.arange(len(order))
+    row_model = np.full(n, -1, dtype=np.int64)
+    row_model[rows] = rank[inverse.ravel()]
+    first_row = rows[first[order]].astype(np.int64)
+    digests = uniq[order].tobytes()
+    variants = {k: int(row_model[i]) for k, i in variants_row.items()}
     v = store.versions()
     salt = hashlib.sha256(f"{spec.hash}:{v['fencesweep']}:{v['source_hash']}".encode()).hexdigest()
-    return Plan(spec, row_model, np.asarray(first_row, dtype=np.int64), bytes(digests), chunk, variants,
-                skipped, examples, salt)
+    return Plan(spec, row_model, first_row, digests, spec.chunk_size, variants, skipped, examples, salt)
 
 
 def unused_axes(spec: S.Spec) -> list:
@@ -171,10 +179,16 @@ def run_models(scene: str, vals_list: list, simulate: Callable | None = None) ->
 
 
 def _run_chunk(c: int, scene: str, model_ids: list, vals_list: list, simulate: Callable | None,
-               parent: int | None = None):
+               parent: int | None = None, path: str | None = None, meta: dict | None = None):
+    """Run one chunk. With `path` (local workers) the worker writes the chunk file itself and
+    returns no rows, so results never queue up in the parent; without (Dask), the rows go back."""
     if parent is not None:
         _watch_parent(parent)
-    return c, model_ids, run_models(scene, vals_list, simulate)
+    rows = run_models(scene, vals_list, simulate)
+    if path is None:
+        return c, model_ids, rows
+    store.write_chunk(path, scene, model_ids, rows, meta)
+    return c, None, None
 
 
 _WATCHING = False
@@ -354,8 +368,11 @@ def run_sweep(spec: S.Spec | str | Path, out: str | Path | None = None, jobs: in
         def tasks():
             for c in pending:
                 ids = list(plan.chunk_models(c))
+                local = backend == "loky"
                 yield joblib.delayed(_run_chunk)(c, spec.scene, ids, [plan.model_vals(m) for m in ids], simulate,
-                                                 os.getpid() if backend == "loky" else None)
+                                                 os.getpid() if local else None,
+                                                 str(work / plan.chunk_name(c)) if local else None,
+                                                 dict(meta_chunk, chunk=c))
 
         try:
             with _backend(backend, scheduler):
@@ -363,8 +380,9 @@ def run_sweep(spec: S.Spec | str | Path, out: str | Path | None = None, jobs: in
                 par = joblib.Parallel(n_jobs=n_jobs, return_as="generator_unordered", batch_size=1,
                                       pre_dispatch="2*n_jobs")
                 for c, ids, rows in par(tasks()):
-                    store.write_chunk(work / plan.chunk_name(c), spec.scene, ids, rows,
-                                      dict(meta_chunk, chunk=c))
+                    if rows is not None:  # Dask: the client writes
+                        store.write_chunk(work / plan.chunk_name(c), spec.scene, ids, rows,
+                                          dict(meta_chunk, chunk=c))
                     bar.update(int(rows_of[c]))
         finally:
             bar.close()
