@@ -49,6 +49,7 @@ from . import store
 CHUNK_SECONDS, MIN_CHUNKS, CHUNK_MAX = 1.0, 16, 2_000  # CHUNK_MAX bounds the memory in flight
 ASSEMBLY_BLOCK = 16_384  # rows per Parquet row group of the final table
 CHUNK_CACHE = 8  # chunks held in memory while assembling
+SERIAL_BELOW = 3.0  # seconds of estimated work under which a local sweep runs in-process
 _CHOICES = tuple(p.name for p in P.TABLE if p.kind == "choice")
 
 
@@ -272,7 +273,10 @@ def time_sample(plan: Plan, simulate: Callable | None = None, budget: float = 2.
     t0 = time.perf_counter()
     k = 0
     for m in ids:
-        fn(plan.model_vals(int(m)), trajectory=False)
+        try:
+            fn(plan.model_vals(int(m)), trajectory=False)
+        except Exception:  # timed all the same; the sweep records it as a failed row
+            pass
         k += 1
         if time.perf_counter() - t0 > budget:
             break
@@ -321,9 +325,11 @@ class Outcome:
 def run_sweep(spec: S.Spec | str | Path, out: str | Path | None = None, jobs: int | None = None,
               resume: bool = True, backend: str = "loky", scheduler: str | None = None,
               progress: bool = False, simulate: Callable | None = None, plan: Plan | None = None,
-              log: Callable[[str], None] | None = None) -> Outcome:
+              log: Callable[[str], None] | None = None, serial_below: float | None = None) -> Outcome:
     """Run a sweep and write its table. `simulate(vals, trajectory=False) -> (results, None)`
-    defaults to fencesweep.api.simulate_resolved (tests pass a fake)."""
+    defaults to fencesweep.api.simulate_resolved (tests pass a fake). A local sweep whose
+    remaining work is estimated below `serial_below` seconds (default SERIAL_BELOW) runs
+    in this process: starting workers would cost more than it saves."""
     import joblib
 
     t0 = time.perf_counter()
@@ -342,12 +348,11 @@ def run_sweep(spec: S.Spec | str | Path, out: str | Path | None = None, jobs: in
                 log(f"removing {old} ({'--no-resume' if not resume else 'chunks of another spec or engine'})")
                 shutil.rmtree(old) if old.is_dir() else old.unlink()
     work.mkdir(parents=True, exist_ok=True)
-    warmed = False
+    per_run = None
     if plan.chunk_size is None:
         plan.chunk_size = recorded_chunk_size(work)
     if plan.chunk_size is None:  # first run: size the chunks from a short timed sample
         warm_up(plan, simulate)
-        warmed = True
         per_run, _ = time_sample(plan, simulate, budget=0.5, most=8)
         plan.chunk_size = auto_chunk_size(plan.n_models, per_run)
     state = {"spec": spec.normalized(), "spec_hash": spec.hash, "salt": plan.salt, "chunk_size": plan.chunk_size}
@@ -360,8 +365,13 @@ def run_sweep(spec: S.Spec | str | Path, out: str | Path | None = None, jobs: in
         log(f"resuming: {len(done)} of {plan.n_chunks} chunks already in {work}")
     meta_chunk = {"salt": plan.salt}
     if pending:
-        if not warmed:
+        if per_run is None:
             warm_up(plan, simulate)
+            per_run, _ = time_sample(plan, simulate, budget=0.3, most=8)
+        work_left = per_run * sum(len(plan.chunk_models(c)) for c in pending)
+        if backend == "loky" and jobs > 1 and work_left < (SERIAL_BELOW if serial_below is None else serial_below):
+            log(f"about {work_left:.1f} s of work: running in this process (starting workers costs more)")
+            jobs = 1
         bar = _bar(plan.n_scenes - plan.skipped, Path(spec.path).stem if spec.path else "sweep", progress,
                    initial=int(rows_of[done].sum()) if done else 0)
 

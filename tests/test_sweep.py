@@ -49,14 +49,17 @@ def fake_engine(vals, trajectory=False):
 
 
 class Counting:
-    """fake_engine that counts its calls (in this process: jobs = 1)."""
+    """Counts the runs made for chunks (not the warm-up and timing runs); in this process: jobs = 1."""
 
-    def __init__(self):
+    def __init__(self, monkeypatch):
         self.calls = []
+        real = sweep.run_models
 
-    def __call__(self, vals, trajectory=False):
-        self.calls.append(P.model_key(vals))
-        return fake_engine(vals, trajectory)
+        def counting(scene, vals_list, simulate=None):
+            self.calls += [P.model_key(v) for v in vals_list]
+            return real(scene, vals_list, simulate)
+
+        monkeypatch.setattr(sweep, "run_models", counting)
 
 
 SPEC = """
@@ -82,17 +85,16 @@ def run(tmp_path, name="t.parquet", text=SPEC, **kw) -> sweep.Outcome:
 
 
 # ------------------------------------------------------------------ plan and dedup
-def test_dedup_simulates_each_model_once_and_fills_all_rows(tmp_path):
+def test_dedup_simulates_each_model_once_and_fills_all_rows(tmp_path, monkeypatch):
     sp = spec()
     plan = sweep.make_plan(sp)
     # rigid: B2, K2 unused -> 1 run per case; flexible: 5 x 2 per case
     assert sp.n_scenes == 2 * 2 * 5 * 2 == 40
     assert plan.n_models == 2 * (1 + 10) == 22
     assert plan.n_chunks == math.ceil(22 / 4)
-    eng = Counting()
-    res = run(tmp_path, simulate=eng)
-    assert len(eng.calls) == 22 + len(plan.variants)  # each run once, plus the warm-up
-    assert len(set(eng.calls)) == 22
+    eng = Counting(monkeypatch)
+    res = run(tmp_path)
+    assert len(eng.calls) == 22 and len(set(eng.calls)) == 22  # each run once
     df = pd.read_parquet(res.out)
     assert len(df) == 40
     rigid = df[(df.drive == "rigid") & (df.case == "small_far")]
@@ -162,7 +164,7 @@ def test_pandas_round_trip(tmp_path):
 
 def test_same_table_bit_for_bit_for_1_and_2_jobs(tmp_path):
     a = run(tmp_path, "one.parquet", jobs=1)
-    b = run(tmp_path, "two.parquet", jobs=2)
+    b = run(tmp_path, "two.parquet", jobs=2, serial_below=0.0)  # really on 2 loky workers
     assert a.out.read_bytes() == b.out.read_bytes()
     pd.testing.assert_frame_equal(pd.read_parquet(a.out), pd.read_parquet(b.out))
     assert not sweep.work_root(a.out).exists()  # the work directory is removed when done
@@ -239,11 +241,10 @@ def test_killed_sweep_resumes_computing_only_missing_chunks(tmp_path, monkeypatc
     assert sorted(p.name for p in work.glob("chunk-*.parquet")) == sorted(written)
     assert not out.exists() and not list(work.glob(".fencesweep-tmp-*"))
 
-    eng = Counting()
-    res = run(tmp_path, simulate=eng)
+    eng = Counting(monkeypatch)
+    res = run(tmp_path)
     assert res.reused == 3 and res.computed == plan.n_chunks - 3
-    done_models = 3 * plan.chunk_size
-    assert len(eng.calls) == plan.n_models - done_models + len(plan.variants)
+    assert len(eng.calls) == plan.n_models - 3 * plan.chunk_size  # only the missing runs
     assert out.read_bytes() == ref.out.read_bytes()  # nothing lost, nothing different
 
 
@@ -357,7 +358,7 @@ sweep.run_sweep(T.spec(), {out!r}, jobs=1, simulate=slow)
 """
 
 
-def test_process_killed_mid_sweep_then_rerun(tmp_path):
+def test_process_killed_mid_sweep_then_rerun(tmp_path, monkeypatch):
     out = tmp_path / "t.parquet"
     script = tmp_path / "kill_me.py"
     script.write_text(KILL_SCRIPT.format(tests=str(Path(__file__).parent), out=str(out)))
@@ -376,9 +377,10 @@ def test_process_killed_mid_sweep_then_rerun(tmp_path):
             proc.kill()
     saved = len(list(work.glob("chunk-*.parquet")))
     assert 2 <= saved < plan.n_chunks and not out.exists()
-    eng = Counting()
-    res = run(tmp_path, simulate=eng)
+    eng = Counting(monkeypatch)
+    res = run(tmp_path)
     assert res.reused == saved and res.computed == plan.n_chunks - saved
+    assert len(eng.calls) == sum(len(plan.chunk_models(c)) for c in range(saved, plan.n_chunks))
     ref = run(tmp_path, "ref.parquet")
     assert out.read_bytes() == ref.out.read_bytes()
 
@@ -451,7 +453,7 @@ def test_real_engine_impact_sweep_same_for_1_and_2_jobs(tmp_path):
         cases: [{drive: rigid}, {drive: free}]
     """
     a = run(tmp_path, "a.parquet", text=text, simulate=None, jobs=1)
-    b = run(tmp_path, "b.parquet", text=text, simulate=None, jobs=2)
+    b = run(tmp_path, "b.parquet", text=text, simulate=None, jobs=2, serial_below=0.0)
     assert a.out.read_bytes() == b.out.read_bytes()
     df = pd.read_parquet(a.out)
     assert (df.status == "ok").all()
