@@ -320,6 +320,7 @@ class Outcome:
     reused: int  # chunks found in the work directory
     seconds: float
     failed_runs: int = 0
+    jobs: int | None = None  # local processes used (None: Dask)
 
 
 def run_sweep(spec: S.Spec | str | Path, out: str | Path | None = None, jobs: int | None = None,
@@ -399,7 +400,7 @@ def run_sweep(spec: S.Spec | str | Path, out: str | Path | None = None, jobs: in
     failed = assemble(plan, work, out)
     shutil.rmtree(root)
     return Outcome(out, plan.n_scenes - plan.skipped, plan.n_models, plan.n_chunks, len(pending), len(done),
-                   time.perf_counter() - t0, failed)
+                   time.perf_counter() - t0, failed, jobs if backend == "loky" else None)
 
 
 def table_meta(plan: Plan) -> dict:
@@ -560,9 +561,9 @@ def cmd_grid(args: argparse.Namespace) -> int:
               f"run the same command again to finish", file=sys.stderr)
         return 130
     rate = res.n_scenes / res.seconds if res.seconds > 0 else math.inf
+    where = "Dask" if res.jobs is None else f"{res.jobs} job{'s' if res.jobs != 1 else ''}"
     say(f"wrote {res.out}: {res.n_scenes} scenes ({res.n_models} model runs; {res.computed} chunks computed, "
-        f"{res.reused} reused) in {res.seconds:.1f} s, {rate:.1f} scenes/s on "
-        f"{jobs if args.backend == 'loky' else 'dask'} job{'s' if jobs != 1 else ''}")
+        f"{res.reused} reused) in {res.seconds:.1f} s, {rate:.1f} scenes/s on {where}")
     if res.failed_runs:
         say(f"warning: {res.failed_runs} scenes raised in the engine; their status is 'failed: exception ...'")
     return 0
