@@ -540,6 +540,8 @@ def cmd_grid(args: argparse.Namespace) -> int:
         if done:
             print(f"  already done: {len(done)} chunks in {work}")
         workers = jobs if args.backend == "loky" else None
+        if workers and per_run * n_pending < SERIAL_BELOW:
+            workers = 1  # run_sweep runs so little work in-process
         est = per_run * n_pending / (workers or 1)
         print(f"  engine: warm-up {t_warm:.2f} s; {per_run * 1e3:.3g} ms per run (timed on {k} runs)")
         if workers:

@@ -412,7 +412,7 @@ def test_cli_grid_dry_run_and_run(tmp_path, monkeypatch, capsys):
     path.write_text(textwrap.dedent(SPEC) + f"output: {tmp_path / 'cli.parquet'}\n")
     assert cli.main(["grid", str(path), "--dry-run", "--jobs", "2"]) == 0
     text = capsys.readouterr().out
-    assert "40 scenes" in text and "distinct model runs: 22" in text and "estimated time on 2 jobs" in text
+    assert "40 scenes" in text and "distinct model runs: 22" in text and "estimated time on 1 job" in text
     assert not (tmp_path / "cli.parquet").exists()
     assert cli.main(["grid", str(path), "--jobs", "1", "--quiet"]) == 0
     df = pd.read_parquet(tmp_path / "cli.parquet")
