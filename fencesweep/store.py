@@ -8,8 +8,9 @@ metadata; the schema metadata records how the file was made (`fencesweep.spec`, 
 `fencesweep.spec_hash`, `fencesweep.versions`, ...; every value JSON-encoded). Nothing in it depends on the number of
 workers or the time of day, so a sweep writes the same bytes whatever `--jobs` is.
 
-Every file is written atomically: to a temporary file in the same directory, fsync'd, then
-`os.replace`d over the target, so a killed process leaves either the old file or the new.
+Every file is written atomically: to a temporary file in the same directory, then
+`os.replace`d over the target, so a killed process leaves either the old file or the new
+(tables and trajectories are fsync'd first; chunks are checked when reused instead).
 """
 from __future__ import annotations
 
@@ -154,23 +155,28 @@ def results_table(scene: str, rows: list, model_ids: Iterable[int] | None = None
 
 # ---------------------------------------------------------------------------- atomic files
 @contextlib.contextmanager
-def atomic_path(path: str | Path):
-    """Yield a temporary path beside `path`; on success fsync it and os.replace it onto `path`."""
+def atomic_path(path: str | Path, fsync: bool = True):
+    """Yield a temporary path beside `path`; on success fsync it and os.replace it onto `path`.
+
+    Without fsync a power loss may leave a damaged file under the final name (never a
+    killed process: the rename is atomic); chunks skip it, as store.chunk_complete rejects a
+    damaged chunk and the sweep recomputes it."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".fencesweep-tmp-{os.getpid()}-{path.name}")
     try:
         yield tmp
-        with open(tmp, "rb") as fh:
-            os.fsync(fh.fileno())
+        if fsync:
+            with open(tmp, "rb") as fh:
+                os.fsync(fh.fileno())
         os.replace(tmp, path)
     finally:
         if tmp.exists():
             tmp.unlink()
 
 
-def write_table_atomic(table: pa.Table, path: str | Path) -> None:
-    with atomic_path(path) as tmp:
+def write_table_atomic(table: pa.Table, path: str | Path, fsync: bool = True) -> None:
+    with atomic_path(path, fsync) as tmp:
         pq.write_table(table, tmp, compression=COMPRESSION)
 
 
@@ -179,7 +185,7 @@ def write_chunk(path: str | Path, scene: str, model_ids: list, rows: list, meta:
     """One finished chunk: the results of its model runs, with their model numbers."""
     table = results_table(scene, rows, model_ids)
     table = table.replace_schema_metadata(_meta_bytes(meta))
-    write_table_atomic(table, path)
+    write_table_atomic(table, path, fsync=False)
 
 
 def chunk_complete(path: str | Path, n_rows: int) -> bool:
