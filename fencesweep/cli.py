@@ -80,18 +80,11 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--trajectory", metavar="PATH.parquet", help="write the time series for plotting")
     run.set_defaults(func=cmd_run)
 
-    try:
-        from .sweep import add_grid_parser
-    except ImportError:  # sweep layer not available
-        pass
-    else:
-        add_grid_parser(sub)
-    try:
-        from .plots import add_plot_parser
-    except ImportError:
-        pass
-    else:
-        add_plot_parser(sub)
+    from .plots import add_plot_parser  # matplotlib is imported only when a plot is drawn
+    from .sweep import add_grid_parser
+
+    add_grid_parser(sub)
+    add_plot_parser(sub)
     return ap
 
 
