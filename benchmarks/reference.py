@@ -420,13 +420,21 @@ BEHIND, ON, BEYOND = -1, 0, 1           # corner region along the fence: s<0, 0<
 
 OUTCOME_EVENTS = ("scraped", "escaped", "fail")
 EVENT_BIAS = 1e-300     # infinitesimal hysteresis of the event functions (see event_values)
-# Hysteresis of the force-clipping switch: a separation needs N_raw < -N_FLOOR, a
-# re-engagement N_raw > +N_FLOOR.  1e-6 N is ~1e-9 of the contact forces of a cycle
-# (effect on any result far below 1e-9) but above the round-off of N near D = 0
-# (long_near starts with a corner exactly on the fence line, D ~ t^3).
-N_FLOOR = 1e-6
+# Hysteresis of the contact switches, so that neither round-off nor the integration
+# error itself toggles a contact that sits at D ~ 0 (long_near starts with corners
+# exactly on the fence line and on the rail, D ~ t^3 .. t^5; sustained rail contacts
+# at loose tolerances).  A separation needs N_raw < -N_hyst, a re-engagement
+# N_raw > +N_hyst (and D > 0), a loss of geometric contact D < -D_hyst, with
+#   D_hyst = the absolute position tolerance (rtol * 1e-3 m by default),
+#   N_hyst = max(N_FLOOR, N_PER_RTOL * rtol).
+# At the reference tolerance (1e-10): 1e-13 m and 1e-6 N, far below any result's
+# resolution; at rtol = 1e-3: 1 um and 1 N, below that tolerance's own error.
+# An onset needs only D > 0 (EVENT_BIAS): its time is what the results report.
+N_FLOOR = 1e-6          # [N]
+N_PER_RTOL = 1e3        # [N]
 IMPLICIT_METHODS = ("Radau", "BDF")
-IMPLICIT_FIRST_STEPS = (1e-6, 1e-7, 1e-5, 1e-8, 1e-4)    # [t_c], see simulate_cycle
+IMPLICIT_FIRST_STEP = 1e-6     # [t_c], see simulate_cycle
+IMPLICIT_BOOTSTRAP = 1e-4      # [t_c], see simulate_cycle
 
 # per-component state scales [SI] used for the default absolute tolerance
 # atol_i = rtol * scale_i.  Positions are compared with contact penetrations
@@ -510,6 +518,8 @@ class CycleModel:
         self.cx = (hL, -hL, -hL, hL)
         self.cy = (hA, hA, -hA, -hA)
         self.D_fail = 0.5 * min(self.L, self.A)     # §5: penetration limit
+        self.D_hyst = EVENT_BIAS                    # set by simulate_cycle
+        self.N_hyst = N_FLOOR
         self.nfev = 0
 
     # ---- initial state (§1) ------------------------------------------------
@@ -768,7 +778,12 @@ class CycleModel:
         g = self._event_values(t, y, mode, evlist)
         out = []
         for gi, ev in zip(g, evlist):
-            b = N_FLOOR if ev[0] in ("cf_N", "rl_N", "tp_N") else EVENT_BIAS
+            if ev[0] in ("cf_N", "rl_N", "tp_N"):
+                b = self.N_hyst
+            elif ev[0] in ("cf_D", "rl_D") and ev[2] < 0:
+                b = self.D_hyst
+            else:
+                b = EVENT_BIAS
             out.append(gi - b if ev[2] > 0 else gi + b)
         return out
 
@@ -782,7 +797,7 @@ class CycleModel:
         tipc = None
         out = []
         Dmax = None
-        for kind, j, _ in evlist:
+        for kind, j, direction in evlist:
             if kind.startswith("cf"):
                 gx, gy, rx, ry, vx, vy = corners[j]
                 sj = gx * ca + gy * sa
@@ -799,8 +814,7 @@ class CycleModel:
                     out.append(D)
                     continue
                 Dd = -sg * ((-vx * sa + vy * ca) - ald * sj)
-                el, dm = law.parts(D, Dd)
-                out.append(el + dm)
+                out.append(self._n_event(D, Dd, direction))
             elif kind.startswith("rl"):
                 gx, gy, rx, ry, vx, vy = corners[j]
                 if kind == "rl_x":
@@ -808,13 +822,11 @@ class CycleModel:
                 elif kind == "rl_D":
                     out.append(-gy)
                 else:
-                    el, dm = law.parts(-gy, -vy)
-                    out.append(el + dm)
+                    out.append(self._n_event(-gy, -vy, direction))
             elif kind.startswith("tp"):
                 if kind == "tp_N":
                     D, Dd = self.tip_contact(mode, x, yc, c, s, u, w, om, al, ald)[:2]
-                    el, dm = law.parts(D, Dd)
-                    out.append(el + dm)
+                    out.append(self._n_event(D, Dd, direction))
                     continue
                 if tipc is None:
                     tipc = self.tip_geometry(x, yc, c, s, al)
@@ -839,6 +851,16 @@ class CycleModel:
                     Dmax = self.evaluate(t, y, mode, want_rhs=False)[1][2]
                 out.append(Dmax - self.D_fail)
         return out
+
+    def _n_event(self, D, Dd, direction):
+        """Unclipped normal force as an event function.  For a re-engagement
+        (direction +1) a non-positive D gives -(|elastic| + |damping|) <= 0: the
+        continuation of the law to D < 0 must not re-engage a contact that has not
+        come back into penetration."""
+        el, dm = self.law.parts(D, Dd)
+        if direction > 0 and D <= 0.0:
+            return -(abs(el) + abs(dm))
+        return el + dm
 
     # ---- mode transitions ------------------------------------------------------
     def _classify(self, D, N):
@@ -991,14 +1013,20 @@ def _max_step_default(p):
 
 
 def simulate_cycle(p, method="DOP853", rtol=1e-10, atol=None, max_step=None,
-                   max_segments=20000):
-    """Integrate one work cycle; see :func:`simulate_reference`."""
+                   max_segments=20000, keep_trajectory=False):
+    """Integrate one work cycle; see :func:`simulate_reference`.
+
+    Returns (results, n_rhs).  With keep_trajectory the results also hold
+    "_model" and "_segments" [(t0, t1, mode, dense output, step times)] (tests)."""
     model = CycleModel(p)
     drive_kind = p["drive"]
     t_c, t_max = p["t_c"], p["t_max"]
     if max_step is None:
         max_step = _max_step_default(p)
     y_load = model.initial_state()
+    atol_x = _state_atol(["x"], rtol, atol)
+    model.D_hyst = float(np.atleast_1d(atol_x)[0])
+    model.N_hyst = max(N_FLOOR, N_PER_RTOL * rtol)
     mode = model.initial_mode(y_load, drive_kind)
     y = list(y_load) + ([0.0, 0.0] if mode.fence_dyn else []) + [0.0, 0.0]
     y = np.array(y, dtype=float)
@@ -1047,6 +1075,22 @@ def simulate_cycle(p, method="DOP853", rtol=1e-10, atol=None, max_step=None,
             funcs.append(f)
         return funcs
 
+    # A corner lying exactly on the resting fence (D = 0, 0 <= s <= l; long_near's
+    # front corner at the pivot) is in contact from t = 0+: the drive turns the fence
+    # into it at once (alpha ~ t^2 > 0).  It is engaged from the start instead of
+    # waiting for D to exceed the event hysteresis.
+    for j in range(4):
+        if mode.cf_region[j] == ON:
+            D0 = model.contact_now(0.0, y, mode, "cf", j)[0]
+            if abs(D0) <= model.D_hyst:
+                mode.cf_state[j] = ACTIVE
+    if mode.n_fence_active() > 0:
+        n_impacts, t_first = 1, 0.0
+        if drive_kind == "free":       # §3: such a load releases the free fence at once
+            mode.fence_dyn = True
+            mode.B2 = mode.K2 = 0.0
+            released_at = 0.0
+            y = np.concatenate([y[:6], [0.0, 0.0], y[6:]])
     stage_log.append((0.0, mode.stage()))
     nseg = 0
     while True:
@@ -1069,16 +1113,20 @@ def simulate_cycle(p, method="DOP853", rtol=1e-10, atol=None, max_step=None,
         events = make_events(evlist, cache)
         names = model.names(mode)
         # Radau/BDF evaluate their Jacobian at the segment start; at a contact onset
-        # (D = 0) the D^0.25 term makes it singular and Newton may fail down to
-        # "step size < spacing".  Then the segment is retried from other first steps
-        # (a few fixed fractions of t_c; counted in n_retries).
-        first_steps = [None] + ([f_ * p["t_c"] for f_ in IMPLICIT_FIRST_STEPS]
-                                if method in IMPLICIT_METHODS else [])
-        for fs_ in first_steps:
-            kw = {} if fs_ is None else {"first_step": min(fs_, t_end - t)}
+        # (D = 0) the D^0.25 term is not differentiable and Newton can fail down to
+        # "step size < spacing".  Then the segment is retried with a small first
+        # step, and failing that its first IMPLICIT_BOOTSTRAP * t_c is integrated
+        # with DOP853 (same tolerances and events) before the implicit method takes
+        # over again.  Counted in n_retries.
+        attempts = [(method, None, t_end)]
+        if method in IMPLICIT_METHODS:
+            attempts += [(method, IMPLICIT_FIRST_STEP * p["t_c"], t_end),
+                         ("DOP853", None, min(t + IMPLICIT_BOOTSTRAP * p["t_c"], t_end))]
+        for meth_, fs_, t_stop in attempts:
+            kw = {} if fs_ is None else {"first_step": min(fs_, t_stop - t)}
             cache["seen"] = {}
-            sol = solve_ivp(lambda tt, yy: model.rhs(tt, yy, seg_mode), (t, t_end), y,
-                            method=method, rtol=rtol, atol=_state_atol(names, rtol, atol),
+            sol = solve_ivp(lambda tt, yy: model.rhs(tt, yy, seg_mode), (t, t_stop), y,
+                            method=meth_, rtol=rtol, atol=_state_atol(names, rtol, atol),
                             events=events, dense_output=True, max_step=max_step, **kw)
             if sol.status != -1:
                 break
@@ -1109,6 +1157,8 @@ def simulate_cycle(p, method="DOP853", rtol=1e-10, atol=None, max_step=None,
             break
         if sol.status == 0 and found is None:
             t, y = t1, y_new
+            if t < t_end:                 # end of a bootstrap piece (see attempts)
+                continue
             if mode.drive_on and t >= t_c and t_c < t_max:
                 mode.drive_on = False
                 state_at_tc = (t, y.copy(), mode.copy())
@@ -1309,6 +1359,9 @@ def simulate_cycle(p, method="DOP853", rtol=1e-10, atol=None, max_step=None,
         "k_lin": p["k_lin"],
         "I2": p["I2"],
     }
+    if keep_trajectory:
+        res["_model"] = model
+        res["_segments"] = segments
     return res, model.nfev
 
 

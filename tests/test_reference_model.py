@@ -160,3 +160,55 @@ def test_friction_regularisation_converges():
     b = ref.simulate_reference({"case": "small_far", "eps_v": 1e-5}, rtol=1e-8)
     assert a["peak_force"] == pytest.approx(b["peak_force"], rel=1e-3)
     assert a["t_exit"] == pytest.approx(b["t_exit"], rel=1e-3)
+
+
+def _mechanical_energy(model, mode, y, t):
+    """Kinetic + fence spring + contact elastic energy [J] (no dissipation terms)."""
+    x, yc, ph, u, w, om = y[:6]
+    E = 0.5 * model.m1 * (u * u + w * w) + 0.5 * model.I1 * om * om
+    al, ald, aw, awd = model.fence(t, y, mode)
+    E += 0.5 * model.I2 * ald ** 2 + 0.5 * mode.K2 * (aw - al) ** 2
+    engaged = [("cf", j) for j in range(4) if mode.cf_region[j] == ref.ON and mode.cf_state[j]]
+    engaged += [("rl", j) for j in range(4) if mode.rl_region[j] and mode.rl_state[j]]
+    engaged += [("tp", 0)] if mode.tip_inside else []
+    for kind, j in engaged:
+        D = max(model.contact_now(t, y, mode, kind, j)[0], 0.0)
+        E += 0.4 * model.law.k * D ** 2.5
+    return E
+
+
+@pytest.mark.parametrize("geom, kind", [
+    ({"case": "small_far"}, "cf"),
+    ({"L": 0.4, "A": 0.1, "dP": 0.55, "R_s": 0.3}, "tip"),
+    ({"L": 0.3, "A": 0.1, "dP": 0.001, "R_s": -0.05}, "rail"),
+])
+def test_energy_conserved_free_fence_frictionless_elastic(geom, kind):
+    # after its release the free fence, the load and the elastic (e = 1) frictionless
+    # contacts form a conservative system: a wrong sign of a force, a moment or D'
+    # shows up as an energy drift
+    p = ref.resolve_params({**geom, "drive": "free", "mu1": 0.0, "mu2": 0.0, "e": 1.0})
+    res, _ = ref.simulate_cycle(p, rtol=1e-9, keep_trajectory=True)
+    model = res["_model"]
+    energies, kinds = [], set()
+    for (t0, t1, md, sol, ts) in res["_segments"]:
+        if md.fence_dyn and t1 > t0:
+            energies += [_mechanical_energy(model, md, sol(t0), t0),
+                         _mechanical_energy(model, md, sol(t1), t1)]
+            kinds |= {"cf" for j in range(4) if md.cf_region[j] == ref.ON and md.cf_state[j]}
+            kinds |= {"rail" for j in range(4) if md.rl_region[j] and md.rl_state[j]}
+            kinds |= {"tip"} if md.tip_inside and md.tip_state == ref.ACTIVE else set()
+    assert kind in kinds
+    assert max(energies) - min(energies) < 1e-6 * energies[0]
+
+
+def test_contact_energy_is_the_mechanical_energy_lost():
+    # free fence, no friction, e = 0.2: what the system loses after the release is
+    # exactly the contact_energy (damping part + the clipped phase)
+    p = ref.resolve_params({"case": "small_far", "drive": "free", "mu1": 0.0, "mu2": 0.0})
+    res, _ = ref.simulate_cycle(p, rtol=1e-9, keep_trajectory=True)
+    model = res["_model"]
+    segs = [s for s in res["_segments"] if s[2].fence_dyn and s[1] > s[0]]
+    (t0, _, m0, sol0, _), (_, t1, m1, sol1, _) = segs[0], segs[-1]
+    lost = _mechanical_energy(model, m0, sol0(t0), t0) - _mechanical_energy(model, m1, sol1(t1), t1)
+    assert res["contact_energy"] > 1.0
+    assert lost == pytest.approx(res["contact_energy"], rel=1e-6)
