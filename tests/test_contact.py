@@ -92,3 +92,14 @@ def test_friction_never_exceeds_its_limit():
         # the force-moment pair stays inside the limit ellipse (Goyal-Ruina, MODEL.md §6)
         assert (fx * fx + fy * fy) / fmax**2 + (m / mmax) ** 2 <= 1 + 1e-12
         assert fx * ux + fy * uy + m * om <= 1e-12  # dissipative
+
+
+def test_linear_law_freefall_peak_is_the_jump_when_overdamped():
+    # x'' = -(x + beta x'): the force starts at beta (times w sqrt(m1 k_lin)) and its rate
+    # w k (1 - beta^2) is negative for beta > 1, so the peak is the jump at contact, b_lin v_H
+    from fencesweep.contact import derived_k_lin
+    beta = damping_coefficient(0.2, "linear")
+    assert beta > 1
+    k_lin = derived_k_lin(15.0, 4e6, 0.3)
+    expect = beta * math.sqrt(15.0 * k_lin) * drop_speed(0.3)
+    assert simulate("freefall", contact_law="linear")["peak_force"] == pytest.approx(expect, rel=1e-9)

@@ -641,6 +641,21 @@ def cycle_kernel(p, out, traj):
         if t >= t_end - 1e-12 * max(1.0, t_end) or steps >= max_steps:
             if steps >= max_steps:
                 status = Rs.ST_MAXSTEPS
+            elif not exited and t < tc:
+                # a timeout before t_c (t_max < t_c): the cycle's results still run to t_c
+                # (deflection over [0, max(t_exit, t_c)], residual at t_c, MODEL.md §11), so
+                # the load is dropped here, as after an exit, and the fence goes on alone
+                x_exit = y[0]
+                phi_exit = y[2]
+                e_contact = y[9]
+                t_exit = t
+                if (mask0 & FENCE_BITS) != 0:
+                    t_last_loss = t
+                exited = True
+                iw[IW_LOAD] = 0
+                mask0 = 0
+                rhs(t, y, p, iw, f0, aux)
+                continue
             break
         # ---- choose the step ----
         if phase == 0:
@@ -848,7 +863,7 @@ def cycle_kernel(p, out, traj):
         e_contact = y[9]
     if status != Rs.ST_OK:
         outcome = Rs.FAILED
-    if outcome == Rs.TIMEOUT:
+    if outcome == Rs.TIMEOUT and math.isnan(x_exit):
         x_exit = y[0]
         phi_exit = y[2]
         t_exit = min(t, tmax)

@@ -74,13 +74,13 @@ def impact_kernel(p, rigid, free, w, dt, out):
     tmp = np.zeros(N_STATE)
     y[1] = w
     half_side = 0.5 * min(p[Lp.LL], p[Lp.AA])
-    impact_rhs(y, p, rigid, free, f0)
+    N0 = impact_rhs(y, p, rigid, free, f0)  # the linear law jumps to b w at contact
     t = 0.0
-    q_prev2 = 0.0
+    q_prev2 = N0
     t_prev2 = 0.0
-    q_prev = 0.0
+    q_prev = N0
     t_prev = 0.0
-    peak = 0.0
+    peak = N0
     dmax = 0.0
     status = ST_MAXSTEPS
     n = 0
@@ -106,7 +106,9 @@ def impact_kernel(p, rigid, free, w, dt, out):
         if D1 > half_side:
             status = ST_PENETRATION
             break
-        # peak: a local maximum at the previous sample
+        # peak: the largest sample, refined by a parabola where the previous sample is an
+        # interior local maximum (not at a jump: the first sample is the force at contact)
+        peak = max(peak, N1)
         if n >= 2 and q_prev >= q_prev2 and q_prev >= N1 and q_prev > 0.0:
             tp, qp = parabola_peak(t_prev2, q_prev2, t_prev, q_prev, t + h, N1)
             if qp > peak:
