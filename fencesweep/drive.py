@@ -13,6 +13,7 @@ import numpy as np
 from numba import njit
 
 from . import layout as Lp
+from .integrate import hermite_basis
 
 
 @njit(cache=True)
@@ -66,12 +67,7 @@ def drive_angle(t, p):
     a0 = Lp.N_P + i  # beta - beta0 at nodes i, i + 1
     b0 = a0 + (n + 1)  # beta'
     c0 = b0 + (n + 1)  # beta''
-    s2 = s * s
-    s3 = s2 * s
-    h00 = 2.0 * s3 - 3.0 * s2 + 1.0
-    h10 = (s3 - 2.0 * s2 + s) * h
-    h01 = -2.0 * s3 + 3.0 * s2
-    h11 = (s3 - s2) * h
+    h00, h10, h01, h11 = hermite_basis(s, h)
     aw = h00 * p[a0] + h10 * p[b0] + h01 * p[a0 + 1] + h11 * p[b0 + 1]
     db = h00 * p[b0] + h10 * p[c0] + h01 * p[b0 + 1] + h11 * p[c0 + 1]
     return aw, db * om

@@ -27,19 +27,21 @@ def rk4_combine(y, h, k1, k2, k3, k4, out):
         out[i] = y[i] + c * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
 
 
-@njit(cache=True)
-def hermite(y0, f0, y1, f1, h, s, out):
-    """Cubic Hermite interpolant at fraction s in [0, 1] of a step of size h.
-
-    y(s) = h00 y0 + h10 h f0 + h01 y1 + h11 h f1, h00 = 2s^3 - 3s^2 + 1, h10 = s^3 - 2s^2 + s,
-    h01 = -2s^3 + 3s^2, h11 = s^3 - s^2.
-    """
+@njit(cache=True, inline="always")
+def hermite_basis(s, h):
+    """Weights of y0, h f0, y1, h f1 (the last two scaled by h) in the cubic Hermite
+    interpolant at fraction s of a step of size h: h00 = 2s^3 - 3s^2 + 1,
+    h10 = s^3 - 2s^2 + s, h01 = -2s^3 + 3s^2, h11 = s^3 - s^2."""
     s2 = s * s
     s3 = s2 * s
-    a = 2.0 * s3 - 3.0 * s2 + 1.0
-    b = (s3 - 2.0 * s2 + s) * h
-    c = -2.0 * s3 + 3.0 * s2
-    d = (s3 - s2) * h
+    return 2.0 * s3 - 3.0 * s2 + 1.0, (s3 - 2.0 * s2 + s) * h, -2.0 * s3 + 3.0 * s2, (s3 - s2) * h
+
+
+@njit(cache=True)
+def hermite(y0, f0, y1, f1, h, s, out):
+    """Cubic Hermite interpolant at fraction s in [0, 1] of a step of size h:
+    y(s) = h00 y0 + h10 h f0 + h01 y1 + h11 h f1 (hermite_basis)."""
+    a, b, c, d = hermite_basis(s, h)
     for i in range(y0.shape[0]):
         out[i] = a * y0[i] + b * f0[i] + c * y1[i] + d * f1[i]
 
