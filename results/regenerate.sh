@@ -12,7 +12,9 @@ if [[ "${1:-}" == "--jobs" ]]; then JOBS=(--jobs "$2"); fi
 export FENCESWEEP_REGEN_START="$(date +%s)"
 
 # 1. start from nothing (only what this script makes)
-rm -rf results/figures results/traj results/REPORT.md
+rm -rf results/traj results/REPORT.md
+rm -f results/figures/fig[2-8]*.png results/figures/map_*.png results/figures/cycle_*.png \
+      results/figures/recommended.png   # its own figures only (benchmarks write there too)
 SPECS=(b2k2 psi_b2 fig5a fig5b freefall_H)   # fencesweep.report.TABLES
 for spec in "${SPECS[@]}"; do rm -f "results/$spec.parquet"; done
 
