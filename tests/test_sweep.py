@@ -366,9 +366,10 @@ def test_process_killed_mid_sweep_then_rerun(tmp_path, monkeypatch):
     work = sweep.work_root(out) / plan.salt[:16]
     proc = subprocess.Popen([sys.executable, str(script)])
     try:
-        deadline = time.time() + 60
+        polls = 0  # at most 12000 polls 5 ms apart (~60 s) for two chunks to appear
         while len(list(work.glob("chunk-*.parquet"))) < 2:
-            assert proc.poll() is None and time.time() < deadline, "the sweep ended before it was killed"
+            assert proc.poll() is None and polls < 12000, "the sweep ended before it was killed"
+            polls += 1
             time.sleep(0.005)
         proc.send_signal(signal.SIGKILL)
         proc.wait()
