@@ -5,7 +5,6 @@ vector (setup.prepare), calls the compiled kernel of the scene and unpacks its r
 """
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np

@@ -62,3 +62,7 @@ DRIVE_FLEXIBLE, DRIVE_RIGID, DRIVE_FREE = 0, 1, 2
 PROFILE_CRANK_ROCKER, PROFILE_HARMONIC = 0, 1
 
 G = 9.81  # m/s^2, MODEL.md §6
+
+#: RK4 steps per (conservatively short) impact pulse in a cycle, at step_factor = 1
+#: (setup.py sizes dt_fine with it; the cycle kernel sizes each onset's pulse step with it)
+STEPS_PER_PULSE = 40

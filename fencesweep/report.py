@@ -527,9 +527,9 @@ def write_report(res: Path = Path("results"), residual_max_deg: float = RESIDUAL
         return next((t0 for t0, _, s in ev.runs if s == 2), math.nan)
 
     dt1 = s3_start(ev_r) - s3_start(ev_f)
-    w(f"| 6 | §4.2, Figs 7-8: both unfavourable loads are scraped at t_c = 1.36 s, v = 2 m/s, R_s = 0 with the "
-      f"rigid and with the flexible fence; with the flexible fence the contact lasts longer and the load travels "
-      f"further along the belt before it leaves | " + "; ".join(rows) + " | "
+    w("| 6 | §4.2, Figs 7-8: both unfavourable loads are scraped at t_c = 1.36 s, v = 2 m/s, R_s = 0 with the "
+      "rigid and with the flexible fence; with the flexible fence the contact lasts longer and the load travels "
+      "further along the belt before it leaves | " + "; ".join(rows) + " | "
       + ("reproduced" if ok6 and longer and further else "NOT fully reproduced (see the numbers)")
       + f". One detail is not: the paper's Fig. 7b has the flexible fence bring long_near into S3 earlier "
       f"(its Delta t1); ours starts S3 at {s3_start(ev_f):.4f} s (flexible) and {s3_start(ev_r):.4f} s (rigid), "

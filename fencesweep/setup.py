@@ -20,8 +20,6 @@ _LAW = {"hertz": Lp.LAW_HERTZ, "linear": Lp.LAW_LINEAR}
 _DRIVE = {"flexible": Lp.DRIVE_FLEXIBLE, "rigid": Lp.DRIVE_RIGID, "free": Lp.DRIVE_FREE}
 _PROFILE = {"crank_rocker": Lp.PROFILE_CRANK_ROCKER, "harmonic": Lp.PROFILE_HARMONIC}
 
-#: RK4 steps per (conservatively short) impact pulse in a cycle, at step_factor = 1
-STEPS_PER_PULSE = 40
 #: RK4 steps per pulse in the impact and free-fall scenes (cheap: one or two bodies)
 STEPS_PER_PULSE_IMPACT = 2000
 
@@ -109,7 +107,7 @@ def _step_sizes(p: np.ndarray, vals: dict) -> None:
     Fine: the undamped pulse time of the stiffest pairing that can occur, a corner of the
     load (effective mass >= m1/4: for any point of a rectangle m1 r^2 / I1 <= 3) against the
     fence tip (effective mass I2 / l^2), at the largest closing speed v + l max|alpha_w'|,
-    divided by STEPS_PER_PULSE. Coarse: the largest step that still resolves the drive and
+    divided by layout.STEPS_PER_PULSE. Coarse: the largest step that still resolves the drive and
     the fence's own linear dynamics (t_c/200, a 60th of its natural period, a quarter
     of its damping time), and never below the fine step.
     """
@@ -120,7 +118,7 @@ def _step_sizes(p: np.ndarray, vals: dict) -> None:
     else:
         m_red = 1.0 / (4.0 / m1 + vals["l"] ** 2 / vals["I2"])
     speed = vals["v"] + vals["l"] * p[Lp.DAW_MAX]
-    dt_fine = pulse_time(int(p[Lp.LAW]), m_red, p[Lp.KC], speed) / STEPS_PER_PULSE
+    dt_fine = pulse_time(int(p[Lp.LAW]), m_red, p[Lp.KC], speed) / Lp.STEPS_PER_PULSE
     dt_coarse = vals["t_c"] / 200.0
     if vals["drive"] == "flexible":
         if vals["K2"] > 0:

@@ -21,7 +21,7 @@ import math
 import os
 import platform
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Iterable
 
 import numpy as np
 import pyarrow as pa

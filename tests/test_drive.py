@@ -4,7 +4,6 @@ import math
 import numpy as np
 import pytest
 
-from fencesweep import layout as Lp
 from fencesweep import resolve
 from fencesweep.drive import crank_rocker_geometry, drive_angle, rocker_angle
 from fencesweep.setup import prepare

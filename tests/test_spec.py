@@ -1,5 +1,4 @@
 """Sweep specs: expansion (grid, zip, cases, linspace/logspace/range, Psi) and rejection of bad specs."""
-import math
 import textwrap
 
 import numpy as np

@@ -5,7 +5,6 @@ passed as `simulate=` (pickled by value, so loky workers need not import this fi
 `test_real_engine_*` run the real engine on a few scenes.
 """
 import math
-import os
 import signal
 import subprocess
 import sys

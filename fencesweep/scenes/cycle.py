@@ -57,7 +57,6 @@ ETA_FORCE = 0.01  # sustained contact: relative change of the contact force per 
 N_FLOOR = 0.01  # ... relative to the force plus this fraction of the free-fall force
 C_ONSET = 0.25  # ... and at most C_ONSET / (local rate at the onset)
 PULSE_WINDOW = 1.5  # fine steps for this many reference pulse times after an onset
-STEPS_PER_PULSE_REF = 40.0  # setup.STEPS_PER_PULSE: dt_fine * this = the reference pulse time
 
 
 @njit(cache=True, inline="always")
@@ -729,7 +728,7 @@ def cycle_kernel(p, out, traj):
         t1 = t + h
         h_prev = h
         if iw[IW_LOAD] != 0 and (int(aux[AX_MASK]) & ~mask0) != 0:
-            # an onset: resolve its pulse with STEPS_PER_PULSE_REF steps of the pulse time at
+            # an onset: resolve its pulse with Lp.STEPS_PER_PULSE steps of the pulse time at
             # its own closing speed, unless its predicted peak is below the force floor (a
             # light touch, left to the force-following control). A contact can also begin at
             # a finite depth (a corner handed from the rail to the fence at the pivot): then
@@ -737,7 +736,7 @@ def cycle_kernel(p, out, traj):
             t_pulse, f_pulse = _pulse(aux[AX_DDMAX], p)
             if f_pulse >= n_floor:
                 t_pulse_end = max(t_pulse_end, t1 + PULSE_WINDOW * t_pulse)
-                dt_pulse = p[Lp.STEPF] * t_pulse / STEPS_PER_PULSE_REF
+                dt_pulse = p[Lp.STEPF] * t_pulse / Lp.STEPS_PER_PULSE
                 if aux[AX_STIFF] > 0.0:
                     dt_pulse = min(dt_pulse, p[Lp.STEPF] * C_ONSET / aux[AX_STIFF])
                 dt_pulse = max(dt_f / 16.0, min(dt_c, dt_pulse))
