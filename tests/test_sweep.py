@@ -83,6 +83,26 @@ def run(tmp_path, name="t.parquet", text=SPEC, **kw) -> sweep.Outcome:
     return sweep.run_sweep(spec(text), tmp_path / name, **kw)
 
 
+def interrupted_run(monkeypatch, tmp_path, after: int, **kw) -> list:
+    """Run a sweep that is interrupted (KeyboardInterrupt, as if killed) once `after` chunks
+    are written; return the paths of the chunks written."""
+    real_write = store.write_chunk
+    written = []
+
+    def dying_write(path, *a, **k):
+        if len(written) == after:
+            raise KeyboardInterrupt
+        real_write(path, *a, **k)
+        written.append(Path(path))
+
+    monkeypatch.setattr(store, "write_chunk", dying_write)
+    with pytest.raises(KeyboardInterrupt):
+        run(tmp_path, **kw)
+    monkeypatch.setattr(store, "write_chunk", real_write)
+    return written
+
+
+
 # ------------------------------------------------------------------ plan and dedup
 def test_dedup_simulates_each_model_once_and_fills_all_rows(tmp_path, monkeypatch):
     sp = spec()
@@ -223,19 +243,7 @@ def test_killed_sweep_resumes_computing_only_missing_chunks(tmp_path, monkeypatc
     ref = run(tmp_path, "ref.parquet")
     plan = sweep.make_plan(spec())
     out = tmp_path / "t.parquet"
-    real_write = store.write_chunk
-    written = []
-
-    def dying_write(path, *a, **kw):
-        if len(written) == 3:
-            raise KeyboardInterrupt  # as if killed after 3 chunks
-        real_write(path, *a, **kw)
-        written.append(Path(path).name)
-
-    monkeypatch.setattr(store, "write_chunk", dying_write)
-    with pytest.raises(KeyboardInterrupt):
-        run(tmp_path, simulate=fake_engine)
-    monkeypatch.setattr(store, "write_chunk", real_write)
+    written = [p.name for p in interrupted_run(monkeypatch, tmp_path, 3, simulate=fake_engine)]
     work = sweep.work_root(out) / plan.salt[:16]
     assert sorted(p.name for p in work.glob("chunk-*.parquet")) == sorted(written)
     assert not out.exists() and not list(work.glob(".fencesweep-tmp-*"))
@@ -249,37 +257,13 @@ def test_killed_sweep_resumes_computing_only_missing_chunks(tmp_path, monkeypatc
 
 def test_no_resume_recomputes_everything(tmp_path, monkeypatch):
     plan = sweep.make_plan(spec())
-    real_write = store.write_chunk
-    n = []
-
-    def dying_write(path, *a, **kw):
-        if len(n) == 2:
-            raise KeyboardInterrupt
-        real_write(path, *a, **kw)
-        n.append(1)
-
-    monkeypatch.setattr(store, "write_chunk", dying_write)
-    with pytest.raises(KeyboardInterrupt):
-        run(tmp_path)
-    monkeypatch.setattr(store, "write_chunk", real_write)
+    interrupted_run(monkeypatch, tmp_path, 2)
     res = run(tmp_path, resume=False)
     assert res.reused == 0 and res.computed == plan.n_chunks
 
 
 def test_changed_spec_never_reuses_stale_chunks(tmp_path, monkeypatch):
-    real_write = store.write_chunk
-    n = []
-
-    def dying_write(path, *a, **kw):
-        if len(n) == 2:
-            raise KeyboardInterrupt
-        real_write(path, *a, **kw)
-        n.append(1)
-
-    monkeypatch.setattr(store, "write_chunk", dying_write)
-    with pytest.raises(KeyboardInterrupt):
-        run(tmp_path)
-    monkeypatch.setattr(store, "write_chunk", real_write)
+    interrupted_run(monkeypatch, tmp_path, 2)
     changed = SPEC.replace("m1: 12.0", "m1: 13.0")
     res = run(tmp_path, text=changed)
     assert res.reused == 0
@@ -294,19 +278,7 @@ def test_auto_chunk_size_is_recorded_and_reused_on_resume(tmp_path, monkeypatch)
     ref = run(tmp_path, "ref.parquet", text=text)
     # a fake run takes microseconds: chunks are capped to give MIN_CHUNKS of them
     assert ref.n_chunks == math.ceil(22 / math.ceil(22 / sweep.MIN_CHUNKS))
-    real_write = store.write_chunk
-    n = []
-
-    def dying_write(path, *a, **kw):
-        if len(n) == 3:
-            raise KeyboardInterrupt
-        real_write(path, *a, **kw)
-        n.append(1)
-
-    monkeypatch.setattr(store, "write_chunk", dying_write)
-    with pytest.raises(KeyboardInterrupt):
-        run(tmp_path, text=text)
-    monkeypatch.setattr(store, "write_chunk", real_write)
+    interrupted_run(monkeypatch, tmp_path, 3, text=text)
     monkeypatch.setattr(sweep, "auto_chunk_size", lambda *a: 5)  # the timing would differ now
     res = run(tmp_path, text=text)
     assert res.reused == 3 and res.n_chunks == ref.n_chunks
@@ -325,19 +297,7 @@ def test_chunk_name_depends_on_spec_and_contents():
 
 
 def test_truncated_chunk_is_recomputed(tmp_path, monkeypatch):
-    real_write = store.write_chunk
-    n = []
-
-    def dying_write(path, *a, **kw):
-        if len(n) == 2:
-            raise KeyboardInterrupt
-        real_write(path, *a, **kw)
-        n.append(Path(path))
-
-    monkeypatch.setattr(store, "write_chunk", dying_write)
-    with pytest.raises(KeyboardInterrupt):
-        run(tmp_path)
-    monkeypatch.setattr(store, "write_chunk", real_write)
+    n = interrupted_run(monkeypatch, tmp_path, 2)
     n[0].write_bytes(n[0].read_bytes()[:50])  # damaged by hand
     res = run(tmp_path)
     assert res.reused == 1
