@@ -47,7 +47,6 @@ TRAJ_COLUMNS = ("t", "x", "y", "phi", "vx", "vy", "omega", "alpha", "alpha_w", "
                 "E_damper", "E_contact", "W_drive", "W_belt", "E_friction")
 TRAJ_UNITS = ("s", "m", "m", "rad", "m/s", "m/s", "rad/s", "rad", "rad", "rad/s", "N", "N", "N m", "-",
               "J", "J", "J", "J", "J")
-N_TRAJ = len(TRAJ_COLUMNS)
 # quantities whose maxima are located inside the step
 Q_NF, Q_NR, Q_DEFL, Q_ALPHA = 0, 1, 2, 3
 GOLDEN = 0.6180339887498949
@@ -441,19 +440,17 @@ def stage_of(mask):
 
 
 @njit(cache=True)
-def load_geometry(y, p):
-    """(min corner x, max corner x) of the load."""
+def min_corner_x(y, p):
+    """Smallest x of the load's corners [m] (for the escape event)."""
     cphi = math.cos(y[2])
     sphi = math.sin(y[2])
     hl = 0.5 * p[Lp.LL]
     hw = 0.5 * p[Lp.AA]
     xmin = math.inf
-    xmax = -math.inf
     for j in range(4):
         rx, ry = corner_offset(j, hl, hw, cphi, sphi)
         xmin = min(xmin, y[0] + rx)
-        xmax = max(xmax, y[0] + rx)
-    return xmin, xmax
+    return xmin
 
 
 @njit(cache=True)
@@ -462,7 +459,7 @@ def outcome_margin(kind, y, p):
     0 scraped: y - P_max; 1 escaped: min_j x_Gj - l."""
     if kind == 0:
         return y[1] - p[Lp.PMAX]
-    return load_geometry(y, p)[0] - p[Lp.FL]
+    return min_corner_x(y, p) - p[Lp.FL]
 
 
 @njit(cache=True)
