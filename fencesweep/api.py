@@ -41,8 +41,7 @@ def simulate_resolved(vals: dict, trajectory: bool = False):
     rate), fence and rail normal forces, the moment of the load on the fence, the stage and
     the energy integrals (damper, contact damping, drive work, belt work, contact friction).
     """
-    from .setup import prepare, impact_step
-    from .contact import drop_speed
+    from .setup import impact_step, prepare, run_freefall
 
     p = prepare(vals)
     scene = vals["scene"]
@@ -66,8 +65,7 @@ def simulate_resolved(vals: dict, trajectory: bool = False):
 
     out = np.empty(N_IMPACT_RESULTS)
     if scene == "freefall":
-        speed = drop_speed(vals["H"])
-        impact_kernel(p, True, False, speed, impact_step(p, vals, True, speed), out)
+        run_freefall(p, vals, out)
     else:
         rigid = vals["drive"] == "rigid"
         free = vals["drive"] == "free"

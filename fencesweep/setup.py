@@ -32,18 +32,23 @@ def pulse_time(law: int, m: float, kc: float, speed: float) -> float:
     return math.pi * math.sqrt(m / kc)
 
 
+def run_freefall(p: np.ndarray, vals: dict, out: np.ndarray) -> None:
+    """The free fall of MODEL.md §7: the load at v_H = sqrt(2 g H) on a rigid wall (IMPACT_RESULTS)."""
+    from .scenes.impact import impact_kernel
+
+    vh = drop_speed(vals["H"])
+    impact_kernel(p, True, False, vh, impact_step(p, vals, True, vh), out)
+
+
 @lru_cache(maxsize=4096)
 def freefall_force(m1: float, k1: float, e: float, law: str, k_lin: float | None, H: float) -> float:
-    """Peak of N when the load falls from H onto an undeformable surface (MODEL.md §7)."""
-    from .scenes.impact import impact_kernel
+    """Peak of N when the load falls from H onto an undeformable surface (MODEL.md §7), at the
+    default step whatever a cycle's step_factor (the reference of its overload)."""
     from .results import N_IMPACT_RESULTS, RJ
 
-    vals = {"m1": m1, "k1": k1, "e": e, "contact_law": law, "k_lin": k_lin, "H": H}
-    p = _contact_part(vals)
+    vals = {"m1": m1, "k1": k1, "e": e, "contact_law": law, "k_lin": k_lin, "H": H, "step_factor": 1.0}
     out = np.empty(N_IMPACT_RESULTS)
-    vh = drop_speed(H)
-    dt = pulse_time(int(p[Lp.LAW]), m1, p[Lp.KC], vh) / STEPS_PER_PULSE_IMPACT
-    impact_kernel(p, True, False, vh, dt, out)
+    run_freefall(_contact_part(vals), vals, out)
     return float(out[RJ["peak_force"]])
 
 
