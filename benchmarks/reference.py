@@ -37,13 +37,16 @@ G_ACC = 9.81  # [m/s^2] §6
 # Parameters (§12) and named cases
 # ---------------------------------------------------------------------------
 
+# MODEL.md §12 defaults.  The two angles are exact: swing 42 deg (the table's
+# 0.7330383 rad is this value rounded) and dalpha_perm 15 deg (0.2618 rounded).
 DEFAULTS = {
     "v": 2.0, "P_max": 0.7, "mu1": 0.4, "mu2": 0.25, "L": 0.7, "A": 0.1,
     "m1": 15.0, "dP": 0.0, "R_s": 0.0, "phi0": 0.0, "e": 0.2, "k1": 4.0e6,
     "contact_law": "hertz", "k_lin": None, "l": 1.2, "m2": 5.0, "I2": None,
-    "B2": 72.0, "K2": 570.0, "drive": "flexible", "t_c": 1.36, "swing": 0.7330,
-    "profile": "crank_rocker", "coupler_ratio": 2.5, "H": 0.3,
-    "dalpha_perm": 0.2618, "R": 1.2, "w": 2.0, "eps_v": 1e-3, "t_max": None,
+    "B2": 72.0, "K2": 570.0, "drive": "flexible", "t_c": 1.36,
+    "swing": math.radians(42.0), "profile": "crank_rocker", "coupler_ratio": 2.5,
+    "H": 0.3, "dalpha_perm": math.radians(15.0), "R": 1.2, "w": 2.0, "eps_v": 1e-3,
+    "t_max": None,
 }
 
 CASES = {
