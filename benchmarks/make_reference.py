@@ -8,7 +8,10 @@
 Reads benchmarks/validation_scenes.yaml, runs benchmarks/reference.py (scene
 `cycle`) for every scene and writes benchmarks/reference_results.csv: one row per
 scene with its id, every MODEL.md §12 parameter as resolved (defaults <- case <-
-overrides), the MODEL.md §11 results, the cost (n_rhs, n_steps, wall_time) and how
+overrides; floats at full precision, so that `row_params` gives another
+implementation exactly the same problem), the MODEL.md §11 results, per contact kind
+of §5 (fence, tip, rail) whether it touched, its maximum penetration and the minimum
+gap (reference.contact_diagnostics), the cost (n_rhs, n_steps, wall_time) and how
 the row was made (method, rtol, versions, hash of reference.py and of the scene).
 The CSV is rewritten after every finished scene, so an interrupted run resumes
 where it stopped.
@@ -46,7 +49,28 @@ RESULT_COLS = [
     "t_rail", "x_exit", "phi_exit", "max_penetration", "status", "stages",
     "t_release", "q", "n_rhs", "n_steps", "n_segments", "n_scan_events",
     "n_mode_fixes", "n_retries", "wall_time",
-]
+] + [f"{q}_{kind}" for kind in reference.CONTACT_KINDS
+     for q in ("touch", "max_pen", "min_gap")]
+
+
+def row_params(row):
+    """The fully resolved MODEL.md §12 parameters of one CSV row, as keyword arguments.
+
+    Every §12 value the reference ran with (defaults, case and overrides already
+    applied, I2 and t_max explicit), so that another implementation given these solves
+    exactly the reference's problem.  k_lin is passed only under the linear law (under
+    the Hertz law it is unused).  `row` is a mapping (a dict or a pandas Series).
+    """
+    out = {}
+    for k in PARAM_COLS:
+        val = row[k]
+        if k in reference.STRING_PARAMS:
+            out[k] = str(val)
+        elif k == "k_lin" and row["contact_law"] != "linear":
+            continue
+        else:
+            out[k] = float(val)
+    return out
 
 
 def _file_hash(path):
@@ -133,7 +157,7 @@ def main(argv=None):
         df = df[[c for c in cols if c in df.columns] +
                 [c for c in df.columns if c not in cols]]
         tmp = args.out + ".tmp"
-        df.to_csv(tmp, index=False, float_format="%.12g")
+        df.to_csv(tmp, index=False)        # floats at full (round-trip) precision
         os.replace(tmp, args.out)
 
     t0 = time.perf_counter()

@@ -1362,6 +1362,7 @@ def simulate_cycle(p, method="DOP853", rtol=1e-10, atol=None, max_step=None,
         "k_lin": p["k_lin"],
         "I2": p["I2"],
     }
+    res.update(contact_diagnostics(model, segments))
     if keep_trajectory:
         res["_model"] = model
         res["_segments"] = segments
@@ -1418,6 +1419,101 @@ def _scan_events(model, mode, evlist, sol, t0, y0):
             return k, float(r), np.asarray(sol.sol(r), dtype=float), t_prev, y_prev
         g_prev, t_prev, y_prev = g, tt, yy
     return None
+
+
+CONTACT_KINDS = ("fence", "tip", "rail")     # §5.1 corner-fence, §5.2 tip-edge, §5.3 corner-rail
+
+
+def _clearances(model, md, ts, Y):
+    """Signed clearance of each contact kind of §5 at the times ts (states Y[:, i])
+    under the frozen mode md: {kind: array}, +inf where no contact of that kind is
+    possible (no corner in its region).  Negative means penetration, and then it is
+    -D of the engaged contact, so the clearance is continuous across onsets.
+
+    fence: min over the corners with 0 <= s <= l of sigma_j h_j (§5.1);
+    tip:   distance of the tip T from the load rectangle while T is outside, -D of the
+           pushed edge while it is inside (§5.2);
+    rail:  min over the corners with x_G <= 0 of y_G (§5.3).
+    """
+    n = len(ts)
+    x, yc, ph = Y[0], Y[1], Y[2]
+    if md.fence_dyn:
+        al = Y[6]
+    elif md.drive_on:
+        al = np.array([model.drive(float(t))[0] for t in ts])
+    else:
+        al = np.zeros(n)
+    c, s = np.cos(ph), np.sin(ph)
+    ca, sa = np.cos(al), np.sin(al)
+    out = {k: np.full(n, np.inf) for k in CONTACT_KINDS}
+    for j in range(4):
+        gx = x + c * model.cx[j] - s * model.cy[j]
+        gy = yc + s * model.cx[j] + c * model.cy[j]
+        if md.cf_region[j] == ON:
+            out["fence"] = np.minimum(out["fence"], md.cf_sigma[j] * (-gx * sa + gy * ca))
+        if md.rl_region[j]:
+            out["rail"] = np.minimum(out["rail"], gy)
+    l, hL, hA = model.l, 0.5 * model.L, 0.5 * model.A
+    rx, ry = l * ca - x, l * sa - yc
+    px, py = rx * c + ry * s, -rx * s + ry * c            # T in load axes
+    if md.tip_inside:
+        sg = md.tip_sign
+        out["tip"] = -(hL - sg * px) if md.tip_axis == 0 else -(hA - sg * py)
+    else:
+        out["tip"] = np.hypot(np.maximum(np.abs(px) - hL, 0.0),
+                              np.maximum(np.abs(py) - hA, 0.0))
+    return out
+
+
+def contact_diagnostics(model, segments):
+    """Per contact kind of §5 (fence, tip, rail): whether it touched, its maximum
+    penetration and the minimum gap over the run, from the reference's own solution.
+
+    touch_<kind>:   a force-carrying contact of that kind (mode ACTIVE) over a time
+                    interval of positive length;
+    max_pen_<kind>: max(0, -min clearance) [m], the deepest penetration of that kind;
+    min_gap_<kind>: max(0, min clearance) [m], the closest approach without contact
+                    (0 once it touches; NaN if no contact of that kind was ever possible).
+    The clearance (see _clearances) is sampled SCAN_POINTS times per integrator step of
+    every segment's dense output and its minimum refined by a bounded Brent search.
+    """
+    touch = dict.fromkeys(CONTACT_KINDS, False)
+    cmin = dict.fromkeys(CONTACT_KINDS, np.inf)
+    fr = np.arange(SCAN_POINTS) / SCAN_POINTS
+    for (t0, t1, md, dsol, ts) in segments:
+        if not t1 > t0:
+            continue
+        touch["fence"] |= any(md.cf_region[j] == ON and md.cf_state[j] == ACTIVE
+                              for j in range(4))
+        touch["tip"] |= md.tip_inside and md.tip_state == ACTIVE
+        touch["rail"] |= any(md.rl_region[j] and md.rl_state[j] == ACTIVE for j in range(4))
+        st = np.unique(np.concatenate([[t0], ts[(ts > t0) & (ts < t1)], [t1]]))
+        grid = np.append((st[:-1, None] + np.diff(st)[:, None] * fr[None, :]).ravel(), t1)
+        Y = np.asarray(dsol(grid))
+        if not np.all(np.isfinite(Y)):
+            continue
+        cl = _clearances(model, md, grid, Y)
+        for kind in CONTACT_KINDS:
+            i = int(np.argmin(cl[kind]))
+            best = float(cl[kind][i])
+            if not math.isfinite(best):
+                continue
+            lo, hi = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
+            if hi > lo:
+                def f(tt, kind=kind, md=md, dsol=dsol):
+                    return float(_clearances(model, md, [tt], np.asarray(dsol(tt))[:, None])[kind][0])
+                r = minimize_scalar(f, bounds=(lo, hi), method="bounded",
+                                    options={"xatol": 1e-14 * max(1.0, abs(hi)), "maxiter": 200})
+                if r.success and r.fun < best:
+                    best = float(r.fun)
+            cmin[kind] = min(cmin[kind], best)
+    out = {}
+    for kind in CONTACT_KINDS:
+        out["touch_" + kind] = bool(touch[kind])
+        m = cmin[kind]
+        out["max_pen_" + kind] = max(0.0, -m) if math.isfinite(m) else 0.0
+        out["min_gap_" + kind] = max(0.0, m) if math.isfinite(m) else math.nan
+    return out
 
 
 def _fix_modes(model, t, y, mode, touched):

@@ -212,3 +212,20 @@ def test_contact_energy_is_the_mechanical_energy_lost():
     lost = _mechanical_energy(model, m0, sol0(t0), t0) - _mechanical_energy(model, m1, sol1(t1), t1)
     assert res["contact_energy"] > 1.0
     assert lost == pytest.approx(res["contact_energy"], rel=1e-6)
+
+
+def test_contact_diagnostics_per_kind():
+    # free ride (no contact): the load keeps y, so its rail gap is dP exactly; nothing
+    # touches and the closest approaches are positive
+    r = ref.simulate_reference({"case": "small_far", "v": 3.0, "drive": "rigid"}, rtol=1e-8)
+    assert not (r["touch_fence"] or r["touch_tip"] or r["touch_rail"])
+    assert r["max_pen_fence"] == r["max_pen_tip"] == r["max_pen_rail"] == 0.0
+    assert r["min_gap_rail"] == pytest.approx(0.6, abs=1e-12)
+    assert r["min_gap_fence"] > 0.0 and r["min_gap_tip"] > 0.0
+    # long_near touches all three kinds; the deepest of them is max_penetration
+    r = ref.simulate_reference({"case": "long_near"}, rtol=1e-8)
+    assert r["touch_fence"] and r["touch_tip"] and r["touch_rail"]
+    assert r["min_gap_fence"] == r["min_gap_tip"] == r["min_gap_rail"] == 0.0
+    deepest = max(r["max_pen_fence"], r["max_pen_tip"], r["max_pen_rail"])
+    assert deepest == pytest.approx(r["max_penetration"], rel=1e-9)
+    assert r["max_pen_rail"] > 1e-4
