@@ -88,6 +88,12 @@ def load_scenes(path=SCENES):
     return scenes
 
 
+def scene_hash(scene):
+    """Hash of a scene's overrides (everything but its id), as the CSV records it."""
+    overrides = {k: v for k, v in scene.items() if k != "id"}
+    return hashlib.sha256(json.dumps(overrides, sort_keys=True).encode()).hexdigest()[:12]
+
+
 def run_scene(scene, method, rtol):
     """One row of the CSV (never raises: an invalid scene gives outcome 'invalid')."""
     overrides = {k: v for k, v in scene.items() if k != "id"}
@@ -103,7 +109,7 @@ def run_scene(scene, method, rtol):
     row.update({
         "ref_method": method, "ref_rtol": rtol,
         "ref_atol": "rtol*STATE_SCALE",
-        "scene_hash": hashlib.sha256(row["overrides"].encode()).hexdigest()[:12],
+        "scene_hash": scene_hash(scene),
         "reference_py_hash": _file_hash(os.path.join(HERE, "reference.py")),
         "scipy": scipy.__version__, "numpy": np.__version__,
         "python": sys.version.split()[0],
@@ -140,10 +146,7 @@ def main(argv=None):
         if only:
             if sid in only:
                 todo.append(s)
-        elif args.force or sid not in done or \
-                done[sid].get("scene_hash") != hashlib.sha256(json.dumps(
-                    {k: v for k, v in s.items() if k != "id"},
-                    sort_keys=True).encode()).hexdigest()[:12]:
+        elif args.force or sid not in done or done[sid].get("scene_hash") != scene_hash(s):
             todo.append(s)
     print(f"{len(scenes)} scenes, {len(todo)} to compute "
           f"(method {args.method}, rtol {args.rtol:g}, jobs {args.jobs})", flush=True)
