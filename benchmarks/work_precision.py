@@ -66,17 +66,20 @@ def errors(res: dict, ref: pd.Series) -> dict:
 
 def run_engine(scs: list[dict], ref: pd.DataFrame) -> pd.DataFrame:
     import fencesweep
+    from make_reference import row_params
 
     rows = []
     for sf in ENGINE_FACTORS:
         for sc in scs:
             sid = sc["id"]
-            kw = {k: v for k, v in sc.items() if k not in ("id", "case")}
-            fencesweep.simulate("cycle", sc.get("case"), step_factor=sf, **kw)  # warm (and cache)
+            # the reference's fully resolved MODEL.md §12 parameters (every value, I2 and
+            # t_max explicit, k_lin under the linear law): the engine solves the same problem
+            kw = row_params(ref.loc[sid])
+            fencesweep.simulate("cycle", step_factor=sf, **kw)  # warm (and cache)
             n = 5
             t = time.process_time()
             for _ in range(n):
-                r = fencesweep.simulate("cycle", sc.get("case"), step_factor=sf, **kw)
+                r = fencesweep.simulate("cycle", step_factor=sf, **kw)
             dt = (time.process_time() - t) / n
             rows.append({"solver": "fencesweep RK4", "setting": f"step_factor={sf:g}", "id": sid,
                          "time": dt, "steps": r["n_steps"], **errors(r, ref.loc[sid])})
