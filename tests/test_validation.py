@@ -1,0 +1,123 @@
+"""The engine against the independent reference, scene by scene.
+
+benchmarks/reference_results.csv holds, for every scene of
+benchmarks/validation_scenes.yaml, the fully resolved MODEL.md §12 parameters and the
+results of benchmarks/reference.py (SciPy DOP853 at rtol 1e-10 with event restarts;
+regenerate with `python benchmarks/make_reference.py --force`).  Each row is run through
+the engine with every §12 parameter of the row (make_reference.row_params), and the
+engine must give
+
+  (a) the same outcome,
+  (b) the same contacts: a load-fence contact (corner or tip, §5.1-§5.2) seen or not,
+      i.e. t_first_contact finite, and a rail contact (§5.3) seen or not, i.e.
+      peak_rail_force > 0.  The engine's results do not tell a tip contact from a corner
+      contact, so the reference's touch_fence and touch_tip are compared together;
+  (c) peak_force, deflection_max and t_exit within ERR_BOUND (relative, with floors).
+
+The grazing scenes (graze_* / miss_*: a contact of ~2e-5 m penetration and a gap of
+~2e-5 m) make (b) a sharp test of contact detection.  No wall-clock time is measured.
+"""
+from __future__ import annotations
+
+import math
+import os
+import sys
+
+import pandas as pd
+import pytest
+
+BENCH = os.path.join(os.path.dirname(os.path.abspath(__file__)), os.pardir, "benchmarks")
+sys.path.insert(0, BENCH)
+
+import make_reference  # noqa: E402  (benchmarks/: reads the CSV, never imports the engine)
+
+import fencesweep  # noqa: E402
+
+#: Relative error allowed in peak_force, deflection_max and t_exit.  MODEL.md asks two
+#: independent implementations to agree to 1e-3; the engine's default settings must do
+#: ten times better, a margin over the spec.  The reference is far below the bound: its
+#: CSV (rtol 1e-10) and a rerun at rtol 1e-11 differ by at most 1.3e-9 in these three
+#: measures (with the floors below) over the 103 scenes checked.
+ERR_BOUND = 1e-4
+#: Floor of the force scale [fraction of the scene's freefall_force, MODEL.md §7]: a
+#: scene whose peak force is 0 (no contact) or a few N (a graze, a load resting on the
+#: fence) is judged on the scale of the forces that matter for its overload, not
+#: relative to ~0.
+FORCE_FLOOR = 0.1
+#: Floor of the angle scale [rad]: deflections of rigid fences (0) and of barely
+#: touched flexible ones are compared to 0.01 rad (0.6 deg, 4 % of the 15 deg limit).
+ANGLE_FLOOR = 0.01
+#: Floor of the time scale [s]: no outcome time is near 0, but a 1 ms floor keeps the
+#: bound from becoming absurd if one is.
+TIME_FLOOR = 1e-3
+
+ROWS = pd.read_csv(make_reference.OUT).to_dict("records")
+
+
+def touches(ref: dict) -> tuple[bool, bool]:
+    """(load-fence contact, rail contact) seen by the reference (corner or tip for the fence)."""
+    return bool(ref["touch_fence"] or ref["touch_tip"]), bool(ref["touch_rail"])
+
+
+def errors(res: dict, ref: dict) -> dict:
+    """Relative errors of the engine's results against the reference row (with floors)."""
+    scale = {
+        "peak_force": max(abs(ref["peak_force"]), FORCE_FLOOR * ref["freefall_force"]),
+        "deflection_max": max(abs(ref["deflection_max"]), ANGLE_FLOOR),
+        "t_exit": max(abs(ref["t_exit"]), TIME_FLOOR),
+    }
+    return {k: abs(res[k] - ref[k]) / s for k, s in scale.items()}
+
+
+def mismatches(res: dict, ref: dict) -> list[str]:
+    """Every way in which the engine's results of one scene disagree with the reference."""
+    out = []
+    if res["outcome"] != ref["outcome"]:
+        out.append(f"outcome {res['outcome']} (status {res['status']!r}), "
+                   f"reference {ref['outcome']}")
+    fence, rail = touches(ref)
+    got_fence = math.isfinite(res["t_first_contact"])
+    got_rail = res["peak_rail_force"] > 0.0
+    if got_fence != fence:
+        out.append(f"fence contact {'seen' if got_fence else 'missed'} "
+                   f"(t_first_contact {res['t_first_contact']:.6g} s), reference "
+                   f"{'touches' if fence else 'misses'} (corner {ref['max_pen_fence']:.3g} m, "
+                   f"tip {ref['max_pen_tip']:.3g} m deep; gaps {ref['min_gap_fence']:.3g} m, "
+                   f"{ref['min_gap_tip']:.3g} m)")
+    if got_rail != rail:
+        out.append(f"rail contact {'seen' if got_rail else 'missed'} "
+                   f"(peak_rail_force {res['peak_rail_force']:.6g} N), reference "
+                   f"{'touches' if rail else 'misses'} ({ref['max_pen_rail']:.3g} m deep, "
+                   f"gap {ref['min_gap_rail']:.3g} m)")
+    for k, e in errors(res, ref).items():
+        if not e <= ERR_BOUND:          # NaN fails too
+            out.append(f"{k} {res[k]:.9g}, reference {ref[k]:.9g}: error {e:.2e} > {ERR_BOUND:g}")
+    return out
+
+
+def test_csv_matches_the_scenes():
+    """The CSV is complete and made from the current scene file; the reference ran fine
+    everywhere and its per-kind touches agree with its own contact results."""
+    scenes = make_reference.load_scenes()
+    by_id = {r["id"]: r for r in ROWS}
+    assert [s["id"] for s in scenes] == [r["id"] for r in ROWS]
+    for s in scenes:
+        ref = by_id[s["id"]]
+        assert ref["scene_hash"] == make_reference.scene_hash(s), s["id"]
+        assert ref["status"] == "ok", s["id"]
+        fence, rail = touches(ref)
+        assert fence == math.isfinite(ref["t_first_contact"]), s["id"]
+        assert rail == (ref["peak_rail_force"] > 0.0), s["id"]
+    # the grazes are what their names say (MODEL.md §5 kinds; see validation_scenes.yaml)
+    for kind, col in (("corner_fence", "fence"), ("tip_edge", "tip"), ("corner_rail", "rail"),
+                      ("tip_clip", "tip")):
+        graze, miss = by_id["graze_" + kind], by_id["miss_" + kind]
+        assert graze["touch_" + col] and 5e-6 <= graze["max_pen_" + col] <= 5e-5
+        assert not miss["touch_" + col] and 5e-6 <= miss["min_gap_" + col] <= 5e-5
+
+
+@pytest.mark.parametrize("ref", ROWS, ids=[r["id"] for r in ROWS])
+def test_engine_matches_reference(ref):
+    res = fencesweep.simulate("cycle", **make_reference.row_params(ref))
+    bad = mismatches(res, ref)
+    assert not bad, f"{ref['id']}: " + "; ".join(bad)
