@@ -9,12 +9,14 @@ import argparse
 import json
 import math
 import sys
+from pathlib import Path
 
 from . import params as P
+from . import spec as S
+from . import sweep
+from .errors import UsageError
 
-
-class UsageError(ValueError):
-    """A command-line mistake that is not about a parameter value."""
+__all__ = ["main", "build_parser", "UsageError"]
 
 
 def _parse_sets(items: list[str]) -> dict:
@@ -67,6 +69,103 @@ def cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
+def add_grid_parser(sub) -> argparse.ArgumentParser:
+    g = sub.add_parser(
+        "grid", help="run a parameter sweep from a YAML spec into one Parquet table",
+        description="Run every scene of a sweep spec (sweeps/README.md) on all cores and write one "
+                    "Parquet table, one row per scene. A killed sweep, rerun, computes only what is missing.")
+    g.add_argument("spec", metavar="SPEC.yaml", help="the sweep spec (see sweeps/README.md)")
+    g.add_argument("--out", metavar="PATH.parquet", help="output table (default: the spec's output)")
+    g.add_argument("--jobs", type=int, default=None, metavar="N", help="worker processes (default: all cores)")
+    g.add_argument("--dry-run", action="store_true",
+                   help="print the scene count, model runs and an estimated time; run nothing else")
+    g.add_argument("--no-resume", action="store_true", help="discard chunks of an interrupted run")
+    g.add_argument("--backend", choices=("loky", "dask"), default="loky",
+                   help="loky: processes on this machine; dask: a Dask cluster (needs --scheduler)")
+    g.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler, e.g. tcp://HOST:8786")
+    g.add_argument("--quiet", action="store_true", help="no progress bar and no summary")
+    g.set_defaults(func=cmd_grid)
+    return g
+
+
+def cmd_grid(args: argparse.Namespace) -> int:
+    import joblib
+
+    if args.out is not None and not args.out.endswith(".parquet"):
+        raise UsageError(f"--out {args.out!r} must end with .parquet")
+    if args.jobs is not None and args.jobs < 1:
+        raise UsageError(f"--jobs {args.jobs} is not allowed: --jobs must be >= 1")
+    if args.backend == "dask" and not args.scheduler:
+        raise UsageError("--backend dask needs --scheduler ADDRESS (e.g. tcp://HOST:8786)")
+    if args.scheduler and args.backend != "dask":
+        raise UsageError("--scheduler is only used with --backend dask")
+    say = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
+    spec = S.load(args.spec)
+    out = Path(args.out) if args.out else sweep.default_output(spec)
+    jobs = args.jobs or joblib.cpu_count()
+    plan = sweep.make_plan(spec, progress=not args.quiet)
+    if args.dry_run:
+        return _dry_run(plan, out, jobs, args)
+    for line in sweep.describe_plan(plan, out)[1:]:
+        if "note:" in line or "skipped" in line:
+            say(line.strip())
+    try:
+        res = sweep.run_sweep(spec, out, jobs=jobs, resume=not args.no_resume, backend=args.backend,
+                              scheduler=args.scheduler, progress=not args.quiet, plan=plan, log=say)
+    except KeyboardInterrupt:
+        work = sweep.work_root(out) / plan.salt[:16]
+        n = len(list(work.glob("chunk-*.parquet"))) if work.exists() else 0
+        print(f"fencesweep: interrupted; {n} of {plan.n_chunks} chunks are saved in {work}; "
+              f"run the same command again to finish", file=sys.stderr)
+        return 130
+    rate = res.n_scenes / res.seconds if res.seconds > 0 else math.inf
+    where = "Dask" if res.jobs is None else f"{res.jobs} job{'s' if res.jobs != 1 else ''}"
+    say(f"wrote {res.out}: {res.n_scenes} scenes ({res.n_models} model runs; {res.computed} chunks computed, "
+        f"{res.reused} reused) in {res.seconds:.1f} s, {rate:.1f} scenes/s on {where}")
+    if res.failed_runs:
+        say(f"warning: {res.failed_runs} scenes raised in the engine; their status is 'failed: exception ...'")
+    return 0
+
+
+def _dry_run(plan: sweep.Plan, out: Path, jobs: int, args: argparse.Namespace) -> int:
+    work = sweep.work_root(out) / plan.salt[:16]
+    if plan.chunk_size is None and not args.no_resume:
+        plan.chunk_size = sweep.recorded_chunk_size(work)
+    lines = sweep.describe_plan(plan, out)
+    try:
+        t_warm = sweep.warm_up(plan)
+        per_run, k = sweep.time_sample(plan)
+    except RuntimeError as exc:
+        print("\n".join(lines))
+        print(f"  estimated time: unavailable ({exc})")
+        return 0
+    if plan.chunk_size is None:
+        plan.chunk_size = sweep.auto_chunk_size(plan.n_models, per_run)
+        lines = sweep.describe_plan(plan, out)
+    print("\n".join(lines))
+    done = [] if args.no_resume else sweep.chunks_done(plan, work)
+    n_pending = plan.n_models - sum(len(plan.chunk_models(c)) for c in done)
+    if done:
+        print(f"  already done: {len(done)} chunks in {work}")
+    workers = sweep.local_jobs(jobs, per_run * n_pending) if args.backend == "loky" else None
+    est = per_run * n_pending / (workers or 1)
+    print(f"  engine: warm-up {t_warm:.2f} s; {per_run * 1e3:.3g} ms per run (timed on {k} runs)")
+    if workers:
+        print(f"  estimated time on {workers} job{'s' if workers > 1 else ''}: {_human(est)} "
+              f"for {n_pending} runs")
+    else:
+        print(f"  estimated time: {_human(est)} of work for {n_pending} runs, divided by the cluster's workers")
+    return 0
+
+
+def _human(seconds: float) -> str:
+    if seconds < 90:
+        return f"{seconds:.1f} s"
+    if seconds < 5400:
+        return f"{seconds / 60:.1f} min"
+    return f"{seconds / 3600:.1f} h"
+
+
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="fencesweep", description="Active rotary fence: one cycle, or sweeps of many.")
     sub = ap.add_subparsers(dest="command", required=True)
@@ -81,7 +180,6 @@ def build_parser() -> argparse.ArgumentParser:
     run.set_defaults(func=cmd_run)
 
     from .plots import add_plot_parser  # matplotlib is imported only when a plot is drawn
-    from .sweep import add_grid_parser
 
     add_grid_parser(sub)
     add_plot_parser(sub)

@@ -22,7 +22,6 @@ table is the same, bit for bit, whatever --jobs or backend.
 """
 from __future__ import annotations
 
-import argparse
 import contextlib
 import hashlib
 import json
@@ -42,6 +41,7 @@ import numpy as np
 from . import params as P
 from . import spec as S
 from . import store
+from .errors import UsageError
 
 #: chunk size rule: chunks of about CHUNK_SECONDS of work, at least MIN_CHUNKS of them.
 #: A chunk costs ~0.6-2 ms of dispatch and ~2-15 ms to write (benchmarks/sweep_dispatch.py),
@@ -57,6 +57,11 @@ def auto_chunk_size(n_models: int, seconds_per_run: float) -> int:
     """Model runs per chunk: about CHUNK_SECONDS of work, but at least MIN_CHUNKS chunks."""
     by_time = math.ceil(CHUNK_SECONDS / max(seconds_per_run, 1e-7))
     return max(1, min(by_time, math.ceil(n_models / MIN_CHUNKS), CHUNK_MAX))
+
+
+def local_jobs(jobs: int, work_left: float, serial_below: float | None = None) -> int:
+    """Local processes to use: 1 (this process) when the work left is too small to pay for workers."""
+    return 1 if work_left < (SERIAL_BELOW if serial_below is None else serial_below) else jobs
 
 
 # ------------------------------------------------------------------------------ plan
@@ -233,15 +238,11 @@ def _backend(backend: str, scheduler: str | None):
         import joblib
         from dask.distributed import Client
     except ImportError as exc:
-        from .cli import UsageError
-
         raise UsageError(f"--backend dask needs dask.distributed ({exc}); install it with "
                          f"pip install 'fencesweep[dask]'") from None
     try:
         client = Client(scheduler, timeout="20s")
     except (OSError, TimeoutError) as exc:
-        from .cli import UsageError
-
         raise UsageError(f"--scheduler {scheduler!r}: cannot reach the Dask scheduler ({exc})") from None
     with client, joblib.parallel_config(backend="dask"):
         yield
@@ -370,7 +371,7 @@ def run_sweep(spec: S.Spec | str | Path, out: str | Path | None = None, jobs: in
             warm_up(plan, simulate)
             per_run, _ = time_sample(plan, simulate, budget=0.3, most=8)
         work_left = per_run * sum(len(plan.chunk_models(c)) for c in pending)
-        if backend == "loky" and jobs > 1 and work_left < (SERIAL_BELOW if serial_below is None else serial_below):
+        if backend == "loky" and jobs > 1 and local_jobs(jobs, work_left, serial_below) == 1:
             log(f"about {work_left:.1f} s of work: running in this process (starting workers costs more)")
             jobs = 1
         bar = _bar(plan.n_scenes - plan.skipped, Path(spec.path).stem if spec.path else "sweep", progress,
@@ -481,99 +482,10 @@ def describe_plan(plan: Plan, out: Path) -> list:
     return lines
 
 
-# ------------------------------------------------------------------------------ CLI
-def add_grid_parser(sub) -> argparse.ArgumentParser:
-    g = sub.add_parser(
-        "grid", help="run a parameter sweep from a YAML spec into one Parquet table",
-        description="Run every scene of a sweep spec (sweeps/README.md) on all cores and write one "
-                    "Parquet table, one row per scene. A killed sweep, rerun, computes only what is missing.")
-    g.add_argument("spec", metavar="SPEC.yaml", help="the sweep spec (see sweeps/README.md)")
-    g.add_argument("--out", metavar="PATH.parquet", help="output table (default: the spec's output)")
-    g.add_argument("--jobs", type=int, default=None, metavar="N", help="worker processes (default: all cores)")
-    g.add_argument("--dry-run", action="store_true",
-                   help="print the scene count, model runs and an estimated time; run nothing else")
-    g.add_argument("--no-resume", action="store_true", help="discard chunks of an interrupted run")
-    g.add_argument("--backend", choices=("loky", "dask"), default="loky",
-                   help="loky: processes on this machine; dask: a Dask cluster (needs --scheduler)")
-    g.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler, e.g. tcp://HOST:8786")
-    g.add_argument("--quiet", action="store_true", help="no progress bar and no summary")
-    g.set_defaults(func=cmd_grid)
-    return g
+def __getattr__(name: str):
+    """The grid command's parser and handler moved to fencesweep.cli (kept importable from here)."""
+    if name in ("add_grid_parser", "cmd_grid"):
+        from . import cli
 
-
-def cmd_grid(args: argparse.Namespace) -> int:
-    import joblib
-
-    from .cli import UsageError
-
-    if args.out is not None and not args.out.endswith(".parquet"):
-        raise UsageError(f"--out {args.out!r} must end with .parquet")
-    if args.jobs is not None and args.jobs < 1:
-        raise UsageError(f"--jobs {args.jobs} is not allowed: --jobs must be >= 1")
-    if args.backend == "dask" and not args.scheduler:
-        raise UsageError("--backend dask needs --scheduler ADDRESS (e.g. tcp://HOST:8786)")
-    if args.scheduler and args.backend != "dask":
-        raise UsageError("--scheduler is only used with --backend dask")
-    say = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
-    spec = S.load(args.spec)
-    plan = make_plan(spec, progress=not args.quiet)
-    out = Path(args.out) if args.out else default_output(spec)
-    jobs = args.jobs or joblib.cpu_count()
-    if args.dry_run:
-        work = work_root(out) / plan.salt[:16]
-        if plan.chunk_size is None and not args.no_resume:
-            plan.chunk_size = recorded_chunk_size(work)
-        lines = describe_plan(plan, out)
-        try:
-            t_warm = warm_up(plan)
-            per_run, k = time_sample(plan)
-        except RuntimeError as exc:
-            print("\n".join(lines))
-            print(f"  estimated time: unavailable ({exc})")
-            return 0
-        if plan.chunk_size is None:
-            plan.chunk_size = auto_chunk_size(plan.n_models, per_run)
-            lines = describe_plan(plan, out)
-        print("\n".join(lines))
-        done = [] if args.no_resume else chunks_done(plan, work)
-        n_pending = plan.n_models - sum(len(plan.chunk_models(c)) for c in done)
-        if done:
-            print(f"  already done: {len(done)} chunks in {work}")
-        workers = jobs if args.backend == "loky" else None
-        if workers and per_run * n_pending < SERIAL_BELOW:
-            workers = 1  # run_sweep runs so little work in-process
-        est = per_run * n_pending / (workers or 1)
-        print(f"  engine: warm-up {t_warm:.2f} s; {per_run * 1e3:.3g} ms per run (timed on {k} runs)")
-        if workers:
-            print(f"  estimated time on {workers} job{'s' if workers > 1 else ''}: {_human(est)} "
-                  f"for {n_pending} runs")
-        else:
-            print(f"  estimated time: {_human(est)} of work for {n_pending} runs, divided by the cluster's workers")
-        return 0
-    for line in describe_plan(plan, out)[1:]:
-        if "note:" in line or "skipped" in line:
-            say(line.strip())
-    try:
-        res = run_sweep(spec, out, jobs=jobs, resume=not args.no_resume, backend=args.backend,
-                        scheduler=args.scheduler, progress=not args.quiet, plan=plan, log=say)
-    except KeyboardInterrupt:
-        work = work_root(out) / plan.salt[:16]
-        n = len(list(work.glob("chunk-*.parquet"))) if work.exists() else 0
-        print(f"fencesweep: interrupted; {n} of {plan.n_chunks} chunks are saved in {work}; "
-              f"run the same command again to finish", file=sys.stderr)
-        return 130
-    rate = res.n_scenes / res.seconds if res.seconds > 0 else math.inf
-    where = "Dask" if res.jobs is None else f"{res.jobs} job{'s' if res.jobs != 1 else ''}"
-    say(f"wrote {res.out}: {res.n_scenes} scenes ({res.n_models} model runs; {res.computed} chunks computed, "
-        f"{res.reused} reused) in {res.seconds:.1f} s, {rate:.1f} scenes/s on {where}")
-    if res.failed_runs:
-        say(f"warning: {res.failed_runs} scenes raised in the engine; their status is 'failed: exception ...'")
-    return 0
-
-
-def _human(seconds: float) -> str:
-    if seconds < 90:
-        return f"{seconds:.1f} s"
-    if seconds < 5400:
-        return f"{seconds / 60:.1f} min"
-    return f"{seconds / 3600:.1f} h"
+        return getattr(cli, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
