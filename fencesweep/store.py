@@ -54,13 +54,13 @@ def source_hash() -> str:
 
 def versions() -> dict:
     """Versions that a table records (fencesweep, its source hash, numba, numpy, pyarrow, python)."""
+    from importlib import metadata
+
     from . import __version__
 
-    try:
-        import numba
-
-        numba_version = numba.__version__
-    except ImportError:  # pragma: no cover
+    try:  # from the installed metadata: importing numba here would cost a quarter second
+        numba_version = metadata.version("numba")
+    except metadata.PackageNotFoundError:  # pragma: no cover
         numba_version = None
     return {"fencesweep": __version__, "source_hash": source_hash(), "numba": numba_version,
             "numpy": np.__version__, "pyarrow": pa.__version__, "python": platform.python_version()}
