@@ -25,11 +25,8 @@ def simulate(scene: str = "cycle", case: str | None = None, **params: Any) -> di
     return res
 
 
-def trajectory_capacity(p: np.ndarray) -> int:
-    """Rows enough for every step of a cycle at the fine step (plus slack)."""
-    from . import layout as Lp
-
-    return int(min(2_000_000, 1.2 * p[Lp.TMAX] / p[Lp.DT_FINE] + 10_000))
+#: trajectory rows allocated first; a run that needs more is rerun with the count it reported
+TRAJECTORY_ROWS = 4096
 
 
 def simulate_resolved(vals: dict, trajectory: bool = False):
@@ -37,11 +34,12 @@ def simulate_resolved(vals: dict, trajectory: bool = False):
 
     Returns (results dict, trajectory DataFrame or None). The trajectory (cycle only) has
     the columns of scenes.cycle.TRAJ_COLUMNS (units in df.attrs["units"]), one row per
-    integrator step: time, load pose and velocities, alpha, alpha_w, alpha_dot (the fence's
-    rate), fence and rail normal forces, the moment of the load on the fence, the stage and
-    the energy integrals (damper, contact damping, drive work, belt work, contact friction).
+    integrator step and event: time, load pose and velocities, alpha, alpha_w, alpha_dot (the
+    fence's rate), fence and rail normal forces, the moment of the load on the fence, the
+    stage and the energy integrals (damper, contact damping, drive work, belt work, contact
+    friction).
     """
-    from .setup import impact_step, prepare, run_freefall
+    from .setup import prepare, run_freefall
 
     p = prepare(vals)
     scene = vals["scene"]
@@ -49,12 +47,14 @@ def simulate_resolved(vals: dict, trajectory: bool = False):
         from .scenes.cycle import TRAJ_COLUMNS, TRAJ_UNITS, cycle_kernel
 
         out = np.empty(N_CYCLE_RESULTS)
-        cap = trajectory_capacity(p) if trajectory else 0
-        traj = np.empty((cap, len(TRAJ_COLUMNS)))
+        traj = np.empty((TRAJECTORY_ROWS if trajectory else 0, len(TRAJ_COLUMNS)))
         rows = cycle_kernel(p, out, traj)
         res = unpack("cycle", out)
         if not trajectory:
             return res, None
+        if rows > traj.shape[0]:  # the buffer was too short: run again with the count it needed
+            traj = np.empty((rows, len(TRAJ_COLUMNS)))
+            rows = cycle_kernel(p, out, traj)
         import pandas as pd
 
         df = pd.DataFrame(traj[:rows], columns=list(TRAJ_COLUMNS))
@@ -65,9 +65,7 @@ def simulate_resolved(vals: dict, trajectory: bool = False):
 
     out = np.empty(N_IMPACT_RESULTS)
     if scene == "freefall":
-        run_freefall(p, vals, out)
+        run_freefall(p, out)
     else:
-        rigid = vals["drive"] == "rigid"
-        free = vals["drive"] == "free"
-        impact_kernel(p, rigid, free, vals["w"], impact_step(p, vals, rigid, vals["w"]), out)
+        impact_kernel(p, vals["drive"] == "rigid", vals["drive"] == "free", vals["w"], out)
     return unpack(scene, out), None

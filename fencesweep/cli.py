@@ -103,19 +103,14 @@ def cmd_grid(args: argparse.Namespace) -> int:
     spec = S.load(args.spec)
     out = Path(args.out) if args.out else sweep.default_output(spec)
     jobs = args.jobs or joblib.cpu_count()
-    plan = sweep.make_plan(spec, progress=not args.quiet)
     if args.dry_run:
-        return _dry_run(plan, out, jobs, args)
-    for line in sweep.describe_plan(plan, out)[1:]:
-        if "note:" in line or "skipped" in line:
-            say(line.strip())
+        return _dry_run(spec, out, jobs, args)
     try:
         res = sweep.run_sweep(spec, out, jobs=jobs, resume=not args.no_resume, backend=args.backend,
-                              scheduler=args.scheduler, progress=not args.quiet, plan=plan, log=say)
+                              scheduler=args.scheduler, progress=not args.quiet, log=say)
     except KeyboardInterrupt:
-        work = sweep.work_root(out) / plan.salt[:16]
-        n = len(list(work.glob("chunk-*.parquet"))) if work.exists() else 0
-        print(f"fencesweep: interrupted; {n} of {plan.n_chunks} chunks are saved in {work}; "
+        work, saved, total = sweep.saved_chunks(spec, out)
+        print(f"fencesweep: interrupted; {saved}{f' of {total}' if total else ''} chunks are saved in {work}; "
               f"run the same command again to finish", file=sys.stderr)
         return 130
     rate = res.n_scenes / res.seconds if res.seconds > 0 else math.inf
@@ -127,7 +122,8 @@ def cmd_grid(args: argparse.Namespace) -> int:
     return 0
 
 
-def _dry_run(plan: sweep.Plan, out: Path, jobs: int, args: argparse.Namespace) -> int:
+def _dry_run(spec: S.Spec, out: Path, jobs: int, args: argparse.Namespace) -> int:
+    plan = sweep.make_plan(spec, progress=not args.quiet)
     work = sweep.work_root(out) / plan.salt[:16]
     if plan.chunk_size is None and not args.no_resume:
         plan.chunk_size = sweep.recorded_chunk_size(work)

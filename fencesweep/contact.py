@@ -1,35 +1,37 @@
-"""Contact and friction laws (MODEL.md §4, §5, §6) and the calibration of damping from e.
+"""Contact and friction laws (MODEL.md §4, §5, §6) and their closed forms (§7).
 
-Compiled pieces (one formula each) are used inside the kernels; the calibration of q(e)
-and b_lin(e) runs once per restitution value in plain Python with SciPy and is cached.
+Compiled pieces (one formula each) are used inside the kernels. The damping coefficient
+solved from e lives in calibrate.py (it runs the impact scene).
 """
 from __future__ import annotations
 
 import math
-from functools import lru_cache
-
 from numba import njit
 
 from . import layout as Lp
 
 
 @njit(cache=True, inline="always")
-def normal_force(D, Dd, kc, cd, law):
-    """Normal force N and its elastic part N_el [N] for penetration D [m] and rate Dd [m/s].
+def kelvin_force(D, Dd, kc, cd, law):
+    """Unclipped normal force N and its elastic part N_el [N] for penetration D >= 0 [m] and
+    rate Dd [m/s] (the sign of N says whether the contact pushes, MODEL.md §4).
 
-    hertz (paper eq. 3, MODEL.md §4): N = k1 D^1.5 + q sqrt(m1 k1) D^0.25 Dd, cd = q sqrt(m1 k1);
-    linear (paper eq. 2): N = k_lin D + b_lin Dd, cd = b_lin. Then N := max(N, 0) (no adhesion).
+    hertz (paper eq. 3): N = k1 D^1.5 + q sqrt(m1 k1) D^0.25 Dd, cd = q sqrt(m1 k1);
+    linear (paper eq. 2): N = k_lin D + b_lin Dd, cd = b_lin.
     """
     if law == Lp.LAW_HERTZ:
         rd = math.sqrt(D)
         n_el = kc * D * rd  # k1 D^1.5
-        n = n_el + cd * math.sqrt(rd) * Dd  # + q sqrt(m1 k1) D^0.25 Dd
-    else:
-        n_el = kc * D
-        n = n_el + cd * Dd
-    if n < 0.0:
-        n = 0.0
-    return n, n_el
+        return n_el + cd * math.sqrt(rd) * Dd, n_el  # + q sqrt(m1 k1) D^0.25 Dd
+    n_el = kc * D
+    return n_el + cd * Dd, n_el
+
+
+@njit(cache=True, inline="always")
+def normal_force(D, Dd, kc, cd, law):
+    """Normal force N := max(kelvin_force, 0) (no adhesion, MODEL.md §4) and N_el [N]."""
+    n, n_el = kelvin_force(D, Dd, kc, cd, law)
+    return max(n, 0.0), n_el
 
 
 @njit(cache=True, inline="always")
@@ -61,46 +63,6 @@ def mean_footprint_radius(L: float, A: float) -> float:
     return (2 * a * b * dl + a**3 * math.log((b + dl) / a) + b**3 * math.log((a + dl) / b)) / (6 * a * b)
 
 
-def _restitution(c: float, law: str) -> float:
-    """e of the dimensionless rigid-wall impact x'' = -max(x^1.5 + c x^0.25 x', 0) (hertz) or
-    x'' = -max(x + c x', 0) (linear), x(0) = 0, x'(0) = 1: the rebound speed at the first
-    return of the clipped force to 0 (MODEL.md §4). Integrated by the compiled impact
-    kernel with m1 = k = w = 1 (2000 RK4 steps per pulse, graded start; ~1 ms)."""
-    import numpy as np
-
-    from .results import N_IMPACT_RESULTS, RJ_E_EFF
-    from .scenes.impact import impact_kernel
-
-    p = np.zeros(Lp.N_P)
-    p[Lp.LAW] = Lp.LAW_HERTZ if law == "hertz" else Lp.LAW_LINEAR
-    p[Lp.M1] = p[Lp.KC] = 1.0
-    p[Lp.CD] = c
-    p[Lp.LL] = p[Lp.AA] = np.inf
-    out = np.empty(N_IMPACT_RESULTS)
-    t_pulse = 3.2181 if law == "hertz" else np.pi  # undamped pulse of the scaled problem
-    impact_kernel(p, True, False, 1.0, t_pulse / 2000.0, out)
-    return float(out[RJ_E_EFF])
-
-
-@lru_cache(maxsize=None)
-def damping_coefficient(e: float, law: str = "hertz") -> float:
-    """Dimensionless damping q (hertz) or beta (linear) that gives restitution e (MODEL.md §4).
-
-    hertz: x'' = -max(x^1.5 + q x^0.25 x', 0); linear: x'' = -max(x + beta x', 0), with
-    b_lin = beta sqrt(m1 k_lin). Solved by Brent's method on e(q) (monotone decreasing).
-    """
-    from scipy.optimize import brentq
-
-    if e >= 1.0:
-        return 0.0
-    hi = 1.0
-    while _restitution(hi, law) > e:
-        hi *= 2.0
-        if hi > 1e4:
-            raise ValueError(f"e = {e!r} is too small to calibrate the damping")
-    return brentq(lambda c: _restitution(c, law) - e, 0.0, hi, xtol=1e-12, rtol=1e-12)
-
-
 def hertz_peak(m1: float, k1: float, v0: float) -> float:
     """Undamped Hertz peak force [N]: k1 (5 m1 v0^2 / (4 k1))^0.6 (MODEL.md §7)."""
     return k1 * (5.0 * m1 * v0**2 / (4.0 * k1)) ** 0.6
@@ -111,7 +73,17 @@ def hertz_contact_time(m1: float, k1: float, v0: float) -> float:
     return 3.2181 * (m1**2 / (k1**2 * v0)) ** 0.2
 
 
-def drop_speed(H: float) -> float:
+@njit(cache=True)
+def pulse_time(law, m, kc, speed):
+    """Duration [s] of an undamped impact of mass m at the given speed (MODEL.md §7): Hertz
+    3.2181 (m^2 / (k1^2 v))^0.2; linear pi sqrt(m / k_lin). The time scale of an impact."""
+    if law == Lp.LAW_HERTZ:
+        return 3.2181 * (m * m / (kc * kc * max(speed, 1e-9))) ** 0.2
+    return math.pi * math.sqrt(m / kc)
+
+
+@njit(cache=True)
+def drop_speed(H):
     """v_H = sqrt(2 g H) [m/s] (MODEL.md §7)."""
     return math.sqrt(2.0 * Lp.G * H)
 

@@ -49,12 +49,15 @@ CRD = 39  # ground length d
 TH0 = 40  # crank angle of minimum rocker angle
 BETA0 = 41  # minimum rocker angle
 FFORCE = 42  # free-fall reference peak force (MODEL.md §7)
-DT_COARSE = 43  # step while no contact is near
-DT_FINE = 44  # step that resolves the impact pulse
-DAW_MAX = 45  # max |d alpha_w / dt| (for contact-proximity bounds)
-M_RED = 46  # smallest effective mass of a load-fence pairing (step bounds)
-TAB_N = 47  # number of intervals of the crank-rocker table (0 for the harmonic profile)
-N_P = 48  # length of the header; the crank-rocker table follows it (drive.py)
+DAW_MAX = 43  # max |d alpha_w / dt| (the velocity scale of the error control)
+TAB_N = 44  # number of intervals of the crank-rocker table (0 for the harmonic profile)
+# --- numerics (numerics.py; filled by setup.prepare) ---
+METHOD = 45  # integrate.METHOD_DOPRI5 or METHOD_RK4
+TOL = 46  # local error tolerance (numerics.TOL x step_factor^5, floored)
+DT = 47  # fixed step of the RK4 baseline [s]
+H_MAX = 48  # largest step [s]
+SNAP = 49  # slip [m/s] under which a load without contacts rides the belt in closed form
+N_P = 50  # length of the header; the crank-rocker table follows it (drive.py)
 
 # law / drive / profile codes
 LAW_HERTZ, LAW_LINEAR = 0, 1
@@ -63,6 +66,3 @@ PROFILE_CRANK_ROCKER, PROFILE_HARMONIC = 0, 1
 
 G = 9.81  # m/s^2, MODEL.md §6
 
-#: RK4 steps per (conservatively short) impact pulse in a cycle, at step_factor = 1
-#: (setup.py sizes dt_fine with it; the cycle kernel sizes each onset's pulse step with it)
-STEPS_PER_PULSE = 40

@@ -92,8 +92,14 @@ TABLE: tuple[Param, ...] = (
     Param("t_max", "s", None, "end of a cycle without outcome (derived: t_c + 1)", lo=0.0, hi=1000.0,
           lo_open=True, derived=True),
     # --- engine settings (not physics; recorded in every result table) ---
-    Param("step_factor", "-", 1.0, "multiplies every step size of the integrator (0.1 = 10x finer)",
-          lo=1e-4, hi=10.0, numerics=True),
+    Param("step_factor", "-", 1.0, "scales the integrator's error tolerance as TOL x step_factor^5, so its "
+          "steps scale about like step_factor (0.1 = steps ~10x shorter); with integrator = rk4 it "
+          "multiplies the fixed step dt", lo=1e-4, hi=10.0, numerics=True),
+    Param("integrator", "-", "dopri5", "dopri5 (Dormand-Prince 5(4) with error control, the default) or rk4 "
+          "(classical RK4 at the fixed step dt: the first engine's baseline)", kind="choice",
+          choices=("dopri5", "rk4"), numerics=True),
+    Param("dt", "s", None, "fixed step of integrator = rk4 (derived: 1e-5 s)", lo=1e-9, hi=1.0,
+          derived=True, numerics=True),
 )
 
 BY_NAME: dict[str, Param] = {p.name: p for p in TABLE}
@@ -270,4 +276,12 @@ def model_key(vals: dict[str, Any]) -> tuple:
     if "m2" in used and "I2" in used:
         used -= {"m2"}  # only I2 = m2 l^2/3 (or its override) enters the dynamics
     used.add("step_factor")
+    if scene == "cycle":
+        used.add("integrator")
+        if vals["integrator"] == "rk4":
+            used.add("dt")
+        else:
+            used.discard("dt")
+    else:
+        used -= {"integrator", "dt"}
     return (scene,) + tuple((n, vals[n]) for n in NAMES if n in used)

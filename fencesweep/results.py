@@ -16,12 +16,13 @@ SCRAPED, ESCAPED, TIMEOUT, FAILED = 0, 1, 2, 3
 OUTCOMES = ("scraped", "escaped", "timeout", "failed")
 
 # ---- status codes: 0 ok, the rest name why a run cannot be trusted ----
-ST_OK, ST_PENETRATION, ST_NONFINITE, ST_MAXSTEPS = 0, 1, 2, 3
+ST_OK, ST_PENETRATION, ST_NONFINITE, ST_MAXSTEPS, ST_UNDERFLOW = 0, 1, 2, 3, 4
 STATUS_MESSAGES = (
     "ok",
     "failed: penetration larger than half the load's smaller side (contact too soft or step too large)",
     "failed: non-finite state",
     "failed: step budget exhausted",
+    "failed: step size underflow (the error tolerance cannot be met)",
 )
 
 # ---- stages (MODEL.md §10) ----
@@ -40,6 +41,7 @@ CYCLE_RESULTS = (
     ("deflection_ok", "-", "deflection_max <= dalpha_perm"),
     ("deflection_max", "rad", "max |alpha - alpha_w| over [0, max(t_exit, t_c)]"),
     ("residual_deflection", "rad", "|alpha(t_c) - alpha_w(t_c)|"),
+    ("residual_amplitude", "rad", "sqrt(dalpha(t_c)^2 + (dalpha'(t_c)/omega_n)^2), omega_n = sqrt(K2/I2)"),
     ("alpha_max", "rad", "largest fence angle over [0, max(t_exit, t_c)]"),
     ("damper_energy", "J", "integral of B2 (dalpha_w - dalpha)^2 over [0, t_c]"),
     ("contact_energy", "J", "energy lost in the contacts up to t_exit"),
@@ -54,7 +56,9 @@ CYCLE_RESULTS = (
     ("x_exit", "m", "load centroid x at exit"),
     ("phi_exit", "rad", "load angle at exit"),
     ("max_penetration", "m", "largest penetration of any contact"),
-    ("n_steps", "-", "integrator steps taken"),
+    ("n_steps", "-", "integrator steps taken (accepted)"),
+    ("n_rejected", "-", "steps rejected by the error control"),
+    ("error_estimate", "-", "sum of the accepted steps' local error estimates, relative to the error scales"),
     ("status", "-", "ok, or failed and why"),
 )
 IMPACT_RESULTS = (
@@ -83,7 +87,7 @@ for _i, (_n, _u, _d) in enumerate(IMPACT_RESULTS):
 N_IMPACT_RESULTS = len(IMPACT_RESULTS)
 
 UNITS = {name: unit for rows in SCENE_RESULTS.values() for name, unit, _ in rows}
-_INT_RESULTS = {"n_impacts", "n_steps"}
+_INT_RESULTS = {"n_impacts", "n_steps", "n_rejected"}
 _BOOL_RESULTS = {"safe", "deflection_ok"}
 
 

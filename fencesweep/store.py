@@ -80,6 +80,12 @@ def _json_default(x):
     raise TypeError(f"not JSON serialisable: {type(x).__name__}")
 
 
+def preload() -> None:
+    """Do pyarrow's lazy set-up now: its first array imports pandas (0.2-0.4 s). Called before
+    forking workers, which then inherit it instead of each paying for it."""
+    pa.array([0.0])
+
+
 # ---------------------------------------------------------------------------- schema
 def _field(name: str, typ: pa.DataType, unit: str, doc: str, role: str) -> pa.Field:
     return pa.field(name, typ, nullable=True,
@@ -106,6 +112,22 @@ def param_columns() -> list:
     cols += [(p.name, pa.string() if p.kind == "choice" else pa.float64()) for p in P.TABLE]
     cols += [(n, pa.float64()) for n, _, _ in DERIVED]
     return cols
+
+
+def param_table(columns: dict) -> pa.Table:
+    """The label, parameter and derived columns of a block of scenes ({name: list}) as a table."""
+    return pa.table({name: pa.array(columns[name], type=typ) for name, typ in param_columns()})
+
+
+def read_param_table(path: str | Path) -> pa.Table | None:
+    """A table written by param_table, as written (None if it is missing or damaged)."""
+    try:
+        table = pq.read_table(path)
+    except (OSError, pa.ArrowInvalid):
+        return None
+    if table.column_names != [name for name, _ in param_columns()]:
+        return None
+    return table.combine_chunks()
 
 
 def table_schema(scene: str, meta: dict | None = None) -> pa.Schema:
@@ -202,6 +224,12 @@ def read_chunk(path: str | Path) -> dict:
     return {name: table.column(name).to_numpy(zero_copy_only=False) for name in table.column_names}
 
 
+def _arrow(values, typ: pa.DataType):
+    if isinstance(values, (pa.Array, pa.ChunkedArray)):
+        return values if values.type == typ else values.cast(typ)
+    return pa.array(values, type=typ)
+
+
 class TableWriter:
     """Write a sweep table block by block into one Parquet file, atomically at close."""
 
@@ -214,7 +242,8 @@ class TableWriter:
         self.n_rows = 0
 
     def write(self, columns: dict) -> None:
-        arrays = [pa.array(columns[f.name], type=f.type) for f in self.schema]
+        """One row group: {name: values}, each a sequence, a numpy array or an Arrow array."""
+        arrays = [_arrow(columns[f.name], f.type) for f in self.schema]
         self._writer.write_table(pa.Table.from_arrays(arrays, schema=self.schema))
         self.n_rows += len(arrays[0]) if arrays else 0
 

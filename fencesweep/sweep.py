@@ -1,21 +1,26 @@
 """Sweeps: spec -> scenes -> distinct model runs -> parallel chunks -> one Parquet table.
 
-1. plan: every scene of the spec is resolved (params.resolve) up front, so any bad
+1. plan: every scene of the spec is resolved (params.resolve) once, up front, so any bad
    combination is reported before work starts, and mapped to its model run by
    params.model_key: scenes that differ only in parameters their model does not use
-   (B2, K2, m2 under a rigid drive, ...) share one run (MODEL.md §8).
+   (B2, K2, m2 under a rigid drive, ...) share one run (MODEL.md §8). The same pass
+   writes the parameter columns of the table, block by block, into the work directory.
 2. The distinct runs, numbered in order of first appearance, are cut into chunks of
    `chunk_size` runs: the spec's, or sized from a short timed sample to take about
    CHUNK_SECONDS each (dispatch and writing then cost well under 1 %), and recorded in
    the work directory so that a resumed sweep cuts the same chunks. A chunk's file name
    carries a digest of the spec hash, the package's source hash, its chunk size and the
    model keys of its runs, so a changed spec or engine never reuses a stale chunk.
-3. Pending chunks run in parallel through joblib (loky locally, or Dask); each finished
-   chunk is written atomically into the work directory `OUT.partial/` beside the output
-   (by the local worker that ran it, so results never queue up in the parent; with Dask by
-   the client). A killed sweep, rerun, computes only the chunks that are missing.
-4. The table is assembled block by block from the chunks (rows in scene order) into one
-   Parquet file, atomically; then the work directory is removed.
+3. Pending chunks run in parallel: locally in worker processes, or on a Dask cluster
+   through joblib. A task carries only its chunk's scene numbers; the worker resolves
+   them, runs them and writes the chunk atomically into the work directory `OUT.partial/`
+   beside the output (with Dask the client writes it), so results never queue up in the
+   parent. A killed sweep, rerun, computes only the chunks that are missing.
+   On Linux the local workers are forked from this process once it has loaded the
+   compiled kernels (which takes about as long as planning, so a forked helper plans
+   meanwhile): they start at once and load nothing. Elsewhere they are loky processes.
+4. The table is assembled block by block from the parameter blocks and the chunks (rows in
+   scene order) into one Parquet file, atomically; then the work directory is removed.
 
 Results depend only on each run's parameters, and the assembly only on the plan: the
 table is the same, bit for bit, whatever --jobs or backend.
@@ -24,17 +29,23 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
+import io
+import itertools
 import json
 import math
+import multiprocessing
 import os
+import pickle
 import shutil
+import signal
 import sys
 import threading
 import time
 from collections import OrderedDict
+from concurrent.futures import FIRST_COMPLETED, wait
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Iterable, Iterator
 
 import numpy as np
 
@@ -47,9 +58,11 @@ from .errors import UsageError
 #: A chunk costs ~0.6-2 ms of dispatch and ~2-15 ms to write (benchmarks/sweep_dispatch.py),
 #: i.e. < 1.5 % of one second; MIN_CHUNKS keeps small sweeps balanced and resumable.
 CHUNK_SECONDS, MIN_CHUNKS, CHUNK_MAX = 1.0, 16, 2_000  # CHUNK_MAX bounds the memory in flight
-ASSEMBLY_BLOCK = 16_384  # rows per Parquet row group of the final table
+ASSEMBLY_BLOCK = 16_384  # rows per Parquet row group of the final table (and per parameter block)
 CHUNK_CACHE = 8  # chunks held in memory while assembling
 SERIAL_BELOW = 3.0  # seconds of estimated work under which a local sweep runs in-process
+#: local workers: "fork" (inherit this process's loaded kernels; Linux) or "loky" (fresh processes)
+START_METHOD = "fork" if sys.platform.startswith("linux") else "loky"
 _CHOICES = tuple(p.name for p in P.TABLE if p.kind == "choice")
 
 
@@ -109,42 +122,89 @@ class Plan:
         return self.spec.resolve(int(self.first_row[m]))
 
 
-def make_plan(spec: S.Spec, progress: bool = False) -> Plan:
+def plan_salt(spec: S.Spec) -> str:
+    """Digest of the spec and the engine: names the work directory and salts the chunk names."""
+    v = store.versions()
+    return hashlib.sha256(f"{spec.hash}:{v['fencesweep']}:{v['source_hash']}".encode()).hexdigest()
+
+
+def _key_digester() -> Callable[[tuple], bytes]:
+    """model key -> 16-byte blake2b digest of its pickle (binary floats: 4x faster than repr).
+
+    The pickler runs without a memo, so equal keys always give the same bytes."""
+    buf = io.BytesIO()
+    pickler = pickle.Pickler(buf, protocol=5)
+    pickler.fast = True
+
+    def digest(key: tuple) -> bytes:
+        buf.seek(0)
+        buf.truncate()
+        pickler.dump(key)
+        return hashlib.blake2b(buf.getvalue(), digest_size=16).digest()
+
+    return digest
+
+
+def _param_columns() -> dict:
+    return {name: [] for name, _ in store.param_columns()}
+
+
+def _add_params(cols: dict, vals: dict) -> None:
+    """Append one scene's row of the table's label and parameter columns (Psi derived)."""
+    for name, col in cols.items():
+        col.append(S.psi_of(vals) if name == "Psi" else vals[name])
+
+
+def _params_path(work: Path, block: int) -> Path:
+    return work / f"params-{ASSEMBLY_BLOCK}-{block:06d}.parquet"
+
+
+def make_plan(spec: S.Spec, progress: bool = False, params_dir: Path | None = None) -> Plan:
     """Resolve every scene (raising SpecError on the first bad one) and deduplicate the runs.
+
+    With `params_dir`, the label and parameter columns of the table are written there too,
+    one file per ASSEMBLY_BLOCK scenes, so that assembling the table resolves nothing again.
 
     Memory: 16 bytes of model-key digest per scene while planning (about 60 at the
     np.unique), then 8 (its model number); no Python object per scene is kept.
     """
     n = spec.n_scenes
-    keys = np.zeros(n, dtype="V16")  # blake2b digest of each scene's model key
-    kbuf = keys.view(np.uint8)
+    keys = bytearray(16 * n)  # blake2b digest of each scene's model key
     valid = np.ones(n, dtype=bool)
     variants_row: dict = {}
     skipped, examples = 0, []
+    digest = _key_digester()
     bar = _bar(n, "checking", progress and n > 20_000)
-    for i in range(n):
-        try:
-            vals = spec.resolve(i)
-        except P.ParameterError as exc:
-            if spec.invalid == "skip":
-                valid[i] = False
-                skipped += 1
-                if len(examples) < 3:
-                    examples.append(f"{spec.describe(i)}: {exc}")
-                continue
-            bar.close()
-            raise S.SpecError(f"{spec.describe(i)}: {exc}") from None
-        d = hashlib.blake2b(repr(P.model_key(vals)).encode(), digest_size=16).digest()
-        kbuf[16 * i:16 * i + 16] = np.frombuffer(d, dtype=np.uint8)
-        variants_row.setdefault((spec.scene,) + tuple(vals[c] for c in _CHOICES), i)
-        if (i & 4095) == 4095:
-            bar.update(4096)
-    bar.close()
+    try:
+        for block, start in enumerate(range(0, n, ASSEMBLY_BLOCK)):
+            stop = min(n, start + ASSEMBLY_BLOCK)
+            cols = _param_columns() if params_dir is not None else None
+            for i in range(start, stop):
+                try:
+                    vals = spec.resolve(i)
+                except P.ParameterError as exc:
+                    if spec.invalid == "skip":
+                        valid[i] = False
+                        skipped += 1
+                        if len(examples) < 3:
+                            examples.append(f"{spec.describe(i)}: {exc}")
+                        continue
+                    raise S.SpecError(f"{spec.describe(i)}: {exc}") from None
+                keys[16 * i:16 * i + 16] = digest(P.model_key(vals))
+                variants_row.setdefault((spec.scene,) + tuple(vals[c] for c in _CHOICES), i)
+                if cols is not None:
+                    _add_params(cols, vals)
+            if cols is not None and cols["scene"]:
+                store.write_table_atomic(store.param_table(cols), _params_path(params_dir, block), fsync=False)
+            bar.update(stop - start)
+    finally:
+        bar.close()
     if skipped == n:
         raise S.SpecError(f"every one of the {n} scenes is invalid (invalid: skip); e.g. {examples[0]}")
     rows = np.nonzero(valid)[0]
-    uniq, first, inverse = np.unique(keys[rows], return_index=True, return_inverse=True)
-    del keys, kbuf
+    uniq, first, inverse = np.unique(np.frombuffer(keys, dtype="V16")[rows], return_index=True,
+                                     return_inverse=True)
+    del keys
     order = np.argsort(first, kind="stable")  # model runs numbered in order of first appearance
     rank = np.empty_like(order)
     rank[order] = np.arange(len(order))
@@ -153,9 +213,8 @@ def make_plan(spec: S.Spec, progress: bool = False) -> Plan:
     first_row = rows[first[order]].astype(np.int64)
     digests = uniq[order].tobytes()
     variants = {k: int(row_model[i]) for k, i in variants_row.items()}
-    v = store.versions()
-    salt = hashlib.sha256(f"{spec.hash}:{v['fencesweep']}:{v['source_hash']}".encode()).hexdigest()
-    return Plan(spec, row_model, first_row, digests, spec.chunk_size, variants, skipped, examples, salt)
+    return Plan(spec, row_model, first_row, digests, spec.chunk_size, variants, skipped, examples,
+                plan_salt(spec))
 
 
 def unused_axes(spec: S.Spec) -> list:
@@ -184,17 +243,34 @@ def run_models(scene: str, vals_list: list, simulate: Callable | None = None) ->
     return rows
 
 
-def _run_chunk(c: int, scene: str, model_ids: list, vals_list: list, simulate: Callable | None,
-               parent: int | None = None, path: str | None = None, meta: dict | None = None):
-    """Run one chunk. With `path` (local workers) the worker writes the chunk file itself and
-    returns no rows, so results never queue up in the parent; without (Dask), the rows go back."""
-    if parent is not None:
-        _watch_parent(parent)
-    rows = run_models(scene, vals_list, simulate)
+#: what every chunk of a sweep shares, (spec, simulate): set in each local worker by
+#: _init_worker (inherited when forked), passed along with each task otherwise
+_SHARED: tuple | None = None
+
+
+def _run_chunk(c: int, ids: range, rows: np.ndarray, path: str | None, meta: dict,
+               shared: tuple | None = None) -> tuple:
+    """Run one chunk: resolve its scenes `rows` (one per model run `ids`), run them and, with
+    `path` (local workers), write the chunk file and return no rows, so results never queue
+    up in the parent; without (Dask), return the rows. Also returns (pid, start, ran, written)
+    on the time.monotonic clock."""
+    t0 = time.monotonic()
+    spec, simulate = shared or _SHARED
+    results = run_models(spec.scene, [spec.resolve(int(i)) for i in rows], simulate)
+    t1 = time.monotonic()
     if path is None:
-        return c, model_ids, rows
-    store.write_chunk(path, scene, model_ids, rows, meta)
-    return c, None, None
+        return c, results, (os.getpid(), t0, t1, t1)
+    store.write_chunk(path, spec.scene, list(ids), results, meta)
+    return c, None, (os.getpid(), t0, t1, time.monotonic())
+
+
+def _init_worker(shared: tuple | None, parent: int) -> None:
+    """In each local worker process: the sweep's spec and engine; Ctrl-C is the parent's to
+    handle (it stops the workers); exit when the parent is gone."""
+    global _SHARED
+    _SHARED = shared
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _watch_parent(parent)
 
 
 _WATCHING = False
@@ -205,7 +281,7 @@ def _watch_parent(parent: int) -> None:
     instead of lingering blocked on a result pipe that nobody reads."""
     global _WATCHING
     if _WATCHING or os.getpid() == parent or os.getppid() != parent:
-        return  # in the sweep's own process, or not its child (a Dask worker): nothing to watch
+        return  # in the sweep's own process, or not its child: nothing to watch
     _WATCHING = True
 
     def watch():
@@ -214,6 +290,62 @@ def _watch_parent(parent: int) -> None:
         os._exit(1)
 
     threading.Thread(target=watch, name="fencesweep-watch-parent", daemon=True).start()
+
+
+def _start_pool(jobs: int, shared: tuple | None, method: str):
+    """An executor of `jobs` local worker processes, each set up by _init_worker."""
+    args = (shared, os.getpid())
+    if method == "fork":
+        from concurrent.futures import ProcessPoolExecutor
+
+        store.preload()  # inherited by the workers
+        return ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("fork"),
+                                   initializer=_init_worker, initargs=args)
+    from joblib.externals.loky import ProcessPoolExecutor
+
+    return ProcessPoolExecutor(jobs, initializer=_init_worker, initargs=args)
+
+
+def _stop_pool(pool, kill: bool) -> None:
+    """Shut a pool down; with `kill` (an error or Ctrl-C) at once, stopping running tasks."""
+    if not kill:
+        pool.shutdown(wait=True)
+    elif "kill_workers" in pool.shutdown.__code__.co_varnames:  # loky
+        pool.shutdown(wait=False, kill_workers=True)
+    else:
+        pool.shutdown(wait=False, cancel_futures=True)
+        for proc in list((getattr(pool, "_processes", None) or {}).values()):
+            with contextlib.suppress(Exception):
+                proc.terminate()
+
+
+@contextlib.contextmanager
+def _pool(jobs: int, shared: tuple | None, method: str):
+    pool = _start_pool(jobs, shared, method)
+    try:
+        yield pool
+    except BaseException:
+        _stop_pool(pool, kill=True)
+        raise
+    _stop_pool(pool, kill=False)
+
+
+def _completed(pool, calls: Iterable[tuple], ahead: int) -> Iterator:
+    """Submit calls (fn, *args) to `pool`, at most `ahead` in flight; return an iterator of
+    their results as they finish. The first ones are submitted here (for a forked pool:
+    the workers are forked now)."""
+    calls = iter(calls)
+    running = {pool.submit(*call) for call in itertools.islice(calls, ahead)}
+
+    def results():
+        nonlocal running
+        while running:
+            done, running = wait(running, return_when=FIRST_COMPLETED)
+            running |= {pool.submit(*call) for call in itertools.islice(calls, len(done))}
+            for fut in done:
+                yield fut.result()
+
+    return results()
 
 
 def work_root(out: Path) -> Path:
@@ -229,11 +361,8 @@ def _bar(total: int, desc: str, enabled: bool, initial: int = 0):
 
 
 @contextlib.contextmanager
-def _backend(backend: str, scheduler: str | None):
-    """joblib's loky backend, or its dask backend on a running scheduler."""
-    if backend == "loky":
-        yield
-        return
+def _dask(scheduler: str | None):
+    """joblib's dask backend on a running scheduler."""
     try:
         import joblib
         from dask.distributed import Client
@@ -248,23 +377,45 @@ def _backend(backend: str, scheduler: str | None):
         yield
 
 
-def warm_up(plan: Plan, simulate: Callable | None = None) -> float:
-    """Run one model of each variant (scene, drive, law, profile) in this process.
-
-    This compiles the Numba kernels once here; with on-disk caching the workers then
-    load them instead of compiling each. It also stops a sweep whose engine fails at
-    once, before anything is dispatched. Returns the seconds it took.
-    """
-    fn = simulate or _engine()
-    t0 = time.perf_counter()
-    for m in plan.variants.values():
-        vals = plan.model_vals(m)
+def _warm_rows(spec: S.Spec, rows: Iterable[int], fn: Callable) -> None:
+    for i in rows:
+        vals = spec.resolve(int(i))
         try:
             fn(vals, trajectory=False)
         except Exception as exc:
-            raise RuntimeError(f"the engine failed on {plan.spec.describe(int(plan.first_row[m]))}: "
+            raise RuntimeError(f"the engine failed on {spec.describe(int(i))}: "
                                f"{type(exc).__name__}: {exc}") from exc
+
+
+def warm_up(plan: Plan, simulate: Callable | None = None) -> float:
+    """Run one model of each variant (scene, drive, law, profile) in this process.
+
+    This loads (or compiles, once, into Numba's on-disk cache) the kernels here; forked
+    workers inherit them, loky workers load them from the cache. It also stops a sweep
+    whose engine fails at once, before anything is dispatched. Returns the seconds it took.
+    """
+    t0 = time.perf_counter()
+    _warm_rows(plan.spec, (plan.first_row[m] for m in plan.variants.values()), simulate or _engine())
     return time.perf_counter() - t0
+
+
+def _plan_while_loading(spec: S.Spec, progress: bool, params_dir: Path, simulate: Callable | None) -> tuple:
+    """make_plan in a forked helper process while this process loads the kernels on the
+    first valid scene; returns (plan, seconds the kernels took to load)."""
+    with _pool(1, None, "fork") as helper:
+        planned = helper.submit(make_plan, spec, progress, params_dir)
+        t0 = time.perf_counter()
+        fn = simulate or _engine()
+        for i in range(min(spec.n_scenes, 100)):
+            try:
+                vals = spec.resolve(i)
+            except P.ParameterError:
+                continue
+            with contextlib.suppress(Exception):  # warm_up reports a failing engine
+                fn(vals, trajectory=False)
+            break
+        loaded = time.perf_counter() - t0
+        return planned.result(), loaded
 
 
 def time_sample(plan: Plan, simulate: Callable | None = None, budget: float = 2.0, most: int = 64) -> tuple:
@@ -296,6 +447,17 @@ def recorded_chunk_size(work: Path) -> int | None:
     return int(size) if isinstance(size, int) and size >= 1 else None
 
 
+def saved_chunks(spec: S.Spec, out: Path) -> tuple:
+    """(work directory, chunks saved in it, chunks in all or None) of an interrupted sweep."""
+    work = work_root(Path(out)) / plan_salt(spec)[:16]
+    saved = len(list(work.glob("chunk-*.parquet"))) if work.exists() else 0
+    try:
+        total = json.loads((work / PLAN_FILE).read_text()).get("n_chunks")
+    except (OSError, ValueError):
+        total = None
+    return work, saved, total
+
+
 def chunks_done(plan: Plan, work: Path) -> list:
     """Chunks whose file is in `work` and complete (the others are computed)."""
     if not work.is_dir() or plan.chunk_size is None:
@@ -322,6 +484,9 @@ class Outcome:
     seconds: float
     failed_runs: int = 0
     jobs: int | None = None  # local processes used (None: Dask)
+    #: where the time went: seconds of this process's phases (plan, load, sample, compute,
+    #: assemble) and, summed over the chunks, of the workers' runs and chunk writes
+    timings: dict = field(default_factory=dict)
 
 
 def run_sweep(spec: S.Spec | str | Path, out: str | Path | None = None, jobs: int | None = None,
@@ -331,33 +496,55 @@ def run_sweep(spec: S.Spec | str | Path, out: str | Path | None = None, jobs: in
     """Run a sweep and write its table. `simulate(vals, trajectory=False) -> (results, None)`
     defaults to fencesweep.api.simulate_resolved (tests pass a fake). A local sweep whose
     remaining work is estimated below `serial_below` seconds (default SERIAL_BELOW) runs
-    in this process: starting workers would cost more than it saves."""
-    import joblib
-
+    in this process: starting workers would cost more than it saves. `log` receives the
+    notes a user should see (skipped scenes, unused axes, resuming)."""
     t0 = time.perf_counter()
     log = log or (lambda msg: None)
     if not isinstance(spec, S.Spec):
         spec = S.load(spec)
-    plan = plan or make_plan(spec, progress=progress)
     out = Path(out) if out is not None else default_output(spec)
     if jobs is None:
+        import joblib
+
         jobs = joblib.cpu_count()
+    local = backend == "loky"
     root = work_root(out)
-    work = root / plan.salt[:16]
+    work = root / (plan.salt if plan is not None else plan_salt(spec))[:16]
     if root.exists():
         for old in root.iterdir():
             if not resume or old.name != work.name:
                 log(f"removing {old} ({'--no-resume' if not resume else 'chunks of another spec or engine'})")
                 shutil.rmtree(old) if old.is_dir() else old.unlink()
+    fresh = not root.exists()
     work.mkdir(parents=True, exist_ok=True)
+    for tmp in work.glob(".fencesweep-tmp-*"):  # left by a worker killed while writing
+        tmp.unlink(missing_ok=True)
+    timings = {}
+    forking = local and jobs > 1 and START_METHOD == "fork"
+    if plan is None:
+        t = time.perf_counter()
+        try:
+            if forking:
+                plan, timings["load"] = _plan_while_loading(spec, progress, work, simulate)
+            else:
+                plan = make_plan(spec, progress=progress, params_dir=work)
+        except BaseException:
+            if fresh:
+                shutil.rmtree(root, ignore_errors=True)
+            raise
+        timings["plan"] = time.perf_counter() - t
+        for line in describe_plan(plan, out)[1:]:
+            if "note:" in line or "skipped" in line:
+                log(line.strip())
     per_run = None
     if plan.chunk_size is None:
         plan.chunk_size = recorded_chunk_size(work)
     if plan.chunk_size is None:  # first run: size the chunks from a short timed sample
-        warm_up(plan, simulate)
+        timings["warm_up"] = warm_up(plan, simulate)
         per_run, _ = time_sample(plan, simulate, budget=0.5, most=8)
         plan.chunk_size = auto_chunk_size(plan.n_models, per_run)
-    state = {"spec": spec.normalized(), "spec_hash": spec.hash, "salt": plan.salt, "chunk_size": plan.chunk_size}
+    state = {"spec": spec.normalized(), "spec_hash": spec.hash, "salt": plan.salt, "chunk_size": plan.chunk_size,
+             "n_chunks": plan.n_chunks}
     with store.atomic_path(work / PLAN_FILE) as tmp:
         tmp.write_text(json.dumps(state, indent=1))
     rows_of = plan.chunk_rows()
@@ -368,40 +555,66 @@ def run_sweep(spec: S.Spec | str | Path, out: str | Path | None = None, jobs: in
     meta_chunk = {"salt": plan.salt}
     if pending:
         if per_run is None:
-            warm_up(plan, simulate)
+            timings["warm_up"] = warm_up(plan, simulate)
             per_run, _ = time_sample(plan, simulate, budget=0.3, most=8)
-        work_left = per_run * sum(len(plan.chunk_models(c)) for c in pending)
-        if backend == "loky" and jobs > 1 and local_jobs(jobs, work_left, serial_below) == 1:
-            log(f"about {work_left:.1f} s of work: running in this process (starting workers costs more)")
-            jobs = 1
-        bar = _bar(plan.n_scenes - plan.skipped, Path(spec.path).stem if spec.path else "sweep", progress,
-                   initial=int(rows_of[done].sum()) if done else 0)
+        if local:
+            work_left = per_run * sum(len(plan.chunk_models(c)) for c in pending)
+            if jobs > 1 and local_jobs(jobs, work_left, serial_below) == 1:
+                log(f"about {work_left:.1f} s of work: running in this process (starting workers costs more)")
+                jobs = 1
+        shared = (spec, simulate)
 
-        def tasks():
+        def calls(write: bool, with_shared: bool):
             for c in pending:
-                ids = list(plan.chunk_models(c))
-                local = backend == "loky"
-                yield joblib.delayed(_run_chunk)(c, spec.scene, ids, [plan.model_vals(m) for m in ids], simulate,
-                                                 os.getpid() if local else None,
-                                                 str(work / plan.chunk_name(c)) if local else None,
-                                                 dict(meta_chunk, chunk=c))
+                ids = plan.chunk_models(c)
+                yield (_run_chunk, c, ids, plan.first_row[ids.start:ids.stop],
+                       str(work / plan.chunk_name(c)) if write else None, dict(meta_chunk, chunk=c),
+                       shared if with_shared else None)
 
-        try:
-            with _backend(backend, scheduler):
-                n_jobs = jobs if backend == "loky" else -1
-                par = joblib.Parallel(n_jobs=n_jobs, return_as="generator_unordered", batch_size=1,
-                                      pre_dispatch="2*n_jobs")
-                for c, ids, rows in par(tasks()):
-                    if rows is not None:  # Dask: the client writes
-                        store.write_chunk(work / plan.chunk_name(c), spec.scene, ids, rows,
-                                          dict(meta_chunk, chunk=c))
-                    bar.update(int(rows_of[c]))
-        finally:
-            bar.close()
+        stats = []
+        t = time.perf_counter()
+        with contextlib.ExitStack() as stack:
+            if not local:
+                import joblib
+
+                stack.enter_context(_dask(scheduler))
+                results = joblib.Parallel(n_jobs=-1, return_as="generator_unordered", batch_size=1,
+                                          pre_dispatch="2*n_jobs")(
+                    joblib.delayed(fn)(*args) for fn, *args in calls(False, True))
+            elif jobs == 1:
+                results = (fn(*args) for fn, *args in calls(True, True))
+            else:
+                pool = stack.enter_context(_pool(jobs, shared, START_METHOD))
+                results = _completed(pool, calls(True, False), ahead=2 * jobs)  # forks before the bar's thread
+            bar = stack.enter_context(contextlib.closing(_bar(
+                plan.n_scenes - plan.skipped, Path(spec.path).stem if spec.path else "sweep", progress,
+                initial=int(rows_of[done].sum()) if done else 0)))
+            for c, rows, stat in results:
+                if rows is not None:  # Dask: the client writes
+                    store.write_chunk(work / plan.chunk_name(c), spec.scene, list(plan.chunk_models(c)), rows,
+                                      dict(meta_chunk, chunk=c))
+                stats.append(stat)
+                bar.update(int(rows_of[c]))
+        timings["compute"] = time.perf_counter() - t
+        timings.update(_worker_timings(stats))
+    t = time.perf_counter()
     failed = assemble(plan, work, out)
+    timings["assemble"] = time.perf_counter() - t
     shutil.rmtree(root)
     return Outcome(out, plan.n_scenes - plan.skipped, plan.n_models, plan.n_chunks, len(pending), len(done),
-                   time.perf_counter() - t0, failed, jobs if backend == "loky" else None)
+                   time.perf_counter() - t0, failed, jobs if local else None, timings)
+
+
+def _worker_timings(stats: list) -> dict:
+    """Sum over the chunks of the workers' run and write seconds, and how unevenly they ended."""
+    if not stats:
+        return {}
+    ends: dict = {}
+    for pid, _, _, written in stats:
+        ends[pid] = max(ends.get(pid, written), written)
+    return {"runs": sum(ran - start for _, start, ran, _ in stats),
+            "writes": sum(written - ran for _, _, ran, written in stats),
+            "workers": len(ends), "tail": max(ends.values()) - min(ends.values())}
 
 
 def table_meta(plan: Plan) -> dict:
@@ -412,15 +625,26 @@ def table_meta(plan: Plan) -> dict:
                        "model_runs": plan.n_models}}
 
 
+def _block_params(plan: Plan, work: Path, block: int, rows: np.ndarray):
+    """The label and parameter columns of the scenes `rows` of one block: from the file that
+    make_plan wrote, or resolved here if there is none."""
+    table = store.read_param_table(_params_path(work, block))
+    if table is not None and table.num_rows == len(rows):
+        return table
+    cols = _param_columns()
+    for i in rows:
+        _add_params(cols, plan.spec.resolve(int(i)))
+    return store.param_table(cols)
+
+
 def assemble(plan: Plan, work: Path, out: Path) -> int:
-    """Write the table: rows in scene order, parameters re-resolved, results from the chunks.
+    """Write the table: rows in scene order, parameters from the planning pass, results from the chunks.
 
     Memory holds one block of rows and at most CHUNK_CACHE chunks. Returns the number of
     rows whose run raised (status 'failed: exception ...').
     """
     spec, size = plan.spec, plan.chunk_size
     schema = store.table_schema(spec.scene, table_meta(plan))
-    pcols = store.param_columns()
     rcols = [(f.name, f.type) for f in store.result_schema(spec.scene)]
     np_type = {"double": np.float64, "int64": np.int64, "bool": np.bool_}
     cache: OrderedDict = OrderedDict()
@@ -437,17 +661,13 @@ def assemble(plan: Plan, work: Path, out: Path) -> int:
         return data
 
     with store.TableWriter(out, schema) as writer:
-        for start in range(0, plan.n_scenes, ASSEMBLY_BLOCK):
+        for block, start in enumerate(range(0, plan.n_scenes, ASSEMBLY_BLOCK)):
             stop = min(plan.n_scenes, start + ASSEMBLY_BLOCK)
             rows = np.nonzero(plan.row_model[start:stop] >= 0)[0] + start
             if len(rows) == 0:
                 continue
-            cols = {name: [] for name, _ in pcols}
-            for i in rows:
-                vals = spec.resolve(int(i))
-                vals["Psi"] = S.psi_of(vals)
-                for name, _ in pcols:
-                    cols[name].append(vals[name])
+            params = _block_params(plan, work, block, rows)
+            cols = {name: params.column(name) for name in params.column_names}
             models = plan.row_model[rows]
             which = models // size
             for name, typ in rcols:

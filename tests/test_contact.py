@@ -6,8 +6,9 @@ import pytest
 from scipy.integrate import dblquad
 
 from fencesweep import simulate
-from fencesweep.contact import (belt_friction, coulomb, damping_coefficient, drop_speed,
-                                hertz_contact_time, hertz_peak, mean_footprint_radius, normal_force)
+from fencesweep.calibrate import damping_coefficient
+from fencesweep.contact import (belt_friction, coulomb, drop_speed, hertz_contact_time, hertz_peak,
+                                mean_footprint_radius, normal_force)
 
 
 @pytest.mark.parametrize("e, q", [(0.2, 1.6351), (0.5, 0.5708), (0.9, 0.0766)])

@@ -10,7 +10,7 @@ from fencesweep import resolve, simulate, simulate_resolved
 from fencesweep import layout as Lp
 from fencesweep.drive import drive_angle
 from fencesweep.params import relative_damping
-from fencesweep.scenes.cycle import N_AUX, N_STATE, rhs
+from fencesweep.scenes.cycle import IW_LOAD, IW_MODE, FM_KELVIN, N_AUX, N_IW, N_STATE, rhs
 from fencesweep.setup import prepare
 
 G = 9.81
@@ -53,7 +53,10 @@ def test_fence_without_load_matches_exact_linear_response(B2, K2):
 
 
 def _rhs_fun(p):
-    iw = np.array([1, 1, 1, 1, 1, 1], dtype=np.int64)  # sides +1, Kelvin fence, load present
+    iw = np.zeros(N_IW, dtype=np.int64)  # sides +1, no contact, Kelvin fence, load present, sliding
+    iw[:4] = 1
+    iw[IW_MODE] = FM_KELVIN
+    iw[IW_LOAD] = 1
     dy, aux = np.zeros(N_STATE), np.zeros(N_AUX)
 
     def f(t, y):

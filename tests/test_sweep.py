@@ -36,7 +36,7 @@ def fake_engine(vals, trajectory=False):
             out[name] = R.OUTCOMES[int(x * 7) % 3]
         elif name == "status":
             out[name] = "ok"
-        elif name in ("n_impacts", "n_steps"):
+        elif name in ("n_impacts", "n_steps", "n_rejected"):
             out[name] = int(x * 13) % 1000
         elif name in ("safe", "deflection_ok"):
             out[name] = math.sin(x + k) > 0
@@ -187,6 +187,41 @@ def test_same_table_bit_for_bit_for_1_and_2_jobs(tmp_path):
     assert a.out.read_bytes() == b.out.read_bytes()
     pd.testing.assert_frame_equal(pd.read_parquet(a.out), pd.read_parquet(b.out))
     assert not sweep.work_root(a.out).exists()  # the work directory is removed when done
+
+
+def test_same_table_from_loky_workers(tmp_path, monkeypatch):
+    """Where the workers are not forked (loky: fresh processes) the table is the same."""
+    ref = run(tmp_path, "ref.parquet")
+    monkeypatch.setattr(sweep, "START_METHOD", "loky")
+    res = run(tmp_path, "loky.parquet", jobs=2, serial_below=0.0)
+    assert res.jobs == 2 and res.out.read_bytes() == ref.out.read_bytes()
+
+
+def test_same_table_without_the_planning_pass_parameter_blocks(tmp_path):
+    """A plan made beforehand (no parameter blocks in the work directory): assembly resolves them."""
+    ref = run(tmp_path, "ref.parquet")
+    res = run(tmp_path, "planned.parquet", plan=sweep.make_plan(spec()))
+    assert res.out.read_bytes() == ref.out.read_bytes()
+
+
+def test_model_key_digest_does_not_depend_on_string_identity():
+    digest = sweep._key_digester()
+    literal, flexible = "flexible", "".join(["flex", "ible"])  # equal, not the same object
+    assert flexible is not literal
+    a = digest(("cycle", ("drive", "flexible"), ("contact_law", "flexible"), ("B2", 72.0)))
+    b = digest(("cycle", ("drive", flexible), ("contact_law", "flexible"), ("B2", 72.0)))
+    assert a == b and len(a) == 16
+    assert digest(("cycle", ("B2", 72.0))) != digest(("cycle", ("B2", 72.5)))
+
+
+def test_spec_error_in_planning_leaves_no_work_directory(tmp_path):
+    text = """
+        grid: {dP: [0, 0.5, 0.7]}
+    """
+    for jobs in (1, 2):
+        with pytest.raises(S.SpecError, match="dP = 0.7"):
+            run(tmp_path, text=text, jobs=jobs, serial_below=0.0)
+        assert not sweep.work_root(tmp_path / "t.parquet").exists()
 
 
 def test_impact_scene_columns(tmp_path):
@@ -343,6 +378,58 @@ def test_process_killed_mid_sweep_then_rerun(tmp_path, monkeypatch):
     assert len(eng.calls) == sum(len(plan.chunk_models(c)) for c in range(saved, plan.n_chunks))
     ref = run(tmp_path, "ref.parquet")
     assert out.read_bytes() == ref.out.read_bytes()
+
+
+KILL_SCRIPT_2_JOBS = KILL_SCRIPT.replace("jobs=1", "jobs=2, serial_below=0.0")
+
+
+def test_process_with_workers_killed_mid_sweep_then_rerun(tmp_path, monkeypatch):
+    """SIGKILL of a sweep on 2 workers: its workers exit, what they wrote is reused, the table is whole."""
+    psutil = pytest.importorskip("psutil")
+    out = tmp_path / "t.parquet"
+    script = tmp_path / "kill_me.py"
+    script.write_text(KILL_SCRIPT_2_JOBS.format(tests=str(Path(__file__).parent), out=str(out)))
+    plan = sweep.make_plan(spec())
+    work = sweep.work_root(out) / plan.salt[:16]
+    proc = subprocess.Popen([sys.executable, str(script)])
+    try:
+        polls = 0
+        while len(list(work.glob("chunk-*.parquet"))) < 2:
+            assert proc.poll() is None and polls < 12000, "the sweep ended before it was killed"
+            polls += 1
+            time.sleep(0.005)
+        workers = psutil.Process(proc.pid).children(recursive=True)
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    gone, alive = psutil.wait_procs(workers, timeout=30)  # they watch their parent once a second
+    assert not alive, "workers outlived the killed sweep"
+    res = run(tmp_path)
+    assert res.reused >= 2 and res.reused + res.computed == plan.n_chunks
+    assert out.read_bytes() == run(tmp_path, "ref.parquet").out.read_bytes()
+
+
+def test_cli_interrupted_names_the_saved_chunks(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(api, "simulate_resolved", fake_engine)
+    path = tmp_path / "s.yaml"
+    path.write_text(textwrap.dedent(SPEC) + f"output: {tmp_path / 'cli.parquet'}\n")
+    real_write = store.write_chunk
+    written = []
+
+    def dying_write(*a, **k):
+        if len(written) == 2:
+            raise KeyboardInterrupt
+        real_write(*a, **k)
+        written.append(1)
+
+    monkeypatch.setattr(store, "write_chunk", dying_write)
+    assert cli.main(["grid", str(path), "--jobs", "1", "--quiet"]) == 130
+    assert "interrupted; 2 of 6 chunks are saved" in capsys.readouterr().err
+    monkeypatch.setattr(store, "write_chunk", real_write)
+    assert cli.main(["grid", str(path), "--jobs", "1", "--quiet"]) == 0
+    assert len(pd.read_parquet(tmp_path / "cli.parquet")) == 40
 
 
 def test_assembly_memory_is_bounded_by_blocks(tmp_path, monkeypatch):

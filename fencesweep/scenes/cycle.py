@@ -2,22 +2,24 @@
 
 State y (N_STATE = 13):
   0-5  load x, y, phi, x', y', omega                       (MODEL.md §1)
-  6-7  fence alpha, alpha'                                  (§3; overwritten by alpha_w when kinematic)
-  8    damper energy  int B2 (alpha_w' - alpha')^2 dt (the result is its value at t_c, §11)
-  9    contact energy int sum (N - N_el) D' dt                              (§11)
-  10   drive work     int T_lever alpha_w' dt (T_lever the element's torque; rigid: -tau alpha_w')
-  11   belt work      int (F . v + M omega) dt  (work of belt friction on the load)
+  6-7  fence alpha, alpha'                                  (§3; alpha_w itself when kinematic)
+  8    damper energy  int B2 (alpha_w' - alpha')^2 dt       (§11, read at t_c)
+  9    contact energy int sum (N - N_el) D' dt              (§11)
+  10   drive work     int T_lever alpha_w' dt (rigid: -tau alpha_w')
+  11   belt work      int (F . v + M omega) dt
   12   contact friction dissipation int sum -f w dt
-Integer work vector iw: 0-3 corner sides sigma_j (§5.1), 4 fence mode, 5 load present.
+The energies are quadratures of the first 8 components and are not under error control.
 
-Phases (MODEL.md §8: model only what a phase needs):
-  0  approach: no contact near; the load rides the belt in closed form, only the fence's
-     ODE is stepped (coarse RK4);
-  1  interaction: the full RHS, RK4 with a fine step near or in contact and a coarse
-     step otherwise, bounded by the local stiffness; every change of the set of active
-     contacts, the outcome events and the peaks are located inside the step on the
-     step's cubic Hermite interpolant;
-  2  after exit: the fence alone until t_c (residual deflection, damper energy).
+Integer work vector iw: the corners' sides sigma_j (§5.1), the code of each contact slot
+(contacts.py: APART / PUSH / CLIPPED), the tip's edge, the fence mode, whether the load is
+on the belt and whether it rides the belt in closed form.
+
+The loop (`cycle_kernel`): choose the step -> take it (integrate.take_step; rejected when
+its error estimate exceeds the tolerance) -> find the first event inside it on its dense
+output (a contact slot changing its code, a graze between two apart samples, the outcome
+of §9) and end the step there -> book-keep (stages, peaks located inside the step, the
+trajectory). Between events the right-hand side is smooth: it evaluates only the contacts
+whose slot is not APART, in the mode fixed at the step's start.
 """
 from __future__ import annotations
 
@@ -26,44 +28,40 @@ import math
 import numpy as np
 from numba import njit
 
+from .. import integrate as I
 from .. import layout as Lp
+from .. import numerics as NU
 from .. import results as Rs
-from ..contact import belt_friction, coulomb, normal_force
+from ..contact import belt_friction, pulse_time
 from ..drive import drive_angle
-from ..integrate import axpy, hermite, rk4_combine
+from .contacts import (APART, N_SLOTS, PUSH, RAIL0, TIP, next_code, corner_fence_force, corner_fence_geometry,
+                       corner_rail_force, tip_edge_choice, tip_edge_force, tip_edge_normal, tip_gap, tip_local)
+from .load import corner_motion, initial_state, outcome_margin
 
 N_STATE = 13
-# fence modes
+N_CTRL = 8  # components under error control
+# integer work vector
+IW_CODE = 4  # 4 .. 12: slot codes
+IW_EDGE = 13
+IW_MODE = 14
+IW_LOAD = 15
+IW_RIDE = 16
+N_IW = 17
 FM_KELVIN, FM_KINEMATIC, FM_FREE = 0, 1, 2
-IW_MODE, IW_LOAD = 4, 5
-# aux outputs of the RHS
-AX_NF, AX_NR, AX_DMAX, AX_MASK, AX_TAU, AX_STIFF, AX_DDMAX, N_AUX = 0, 1, 2, 3, 4, 5, 6, 7
-# contact mask bits: corner-fence j -> bit j, corner-rail j -> bit 4 + j, tip-edge -> bit 8
-FENCE_BITS = 0x10F
-RAIL_BITS = 0xF0
+# aux outputs of the right-hand side
+AX_NF, AX_NR, AX_TAU, AX_DMAX, N_AUX = 0, 1, 2, 3, 4
+# tracked maxima (MODEL.md §11)
+Q_NF, Q_NR, Q_DEFL, Q_ALPHA, N_Q = 0, 1, 2, 3, 4
 # trajectory columns
 TRAJ_COLUMNS = ("t", "x", "y", "phi", "vx", "vy", "omega", "alpha", "alpha_w", "alpha_dot",
                 "N_fence", "N_rail", "M_fence", "stage",
                 "E_damper", "E_contact", "W_drive", "W_belt", "E_friction")
 TRAJ_UNITS = ("s", "m", "m", "rad", "m/s", "m/s", "rad/s", "rad", "rad", "rad/s", "N", "N", "N m", "-",
               "J", "J", "J", "J", "J")
-# quantities whose maxima are located inside the step
-Q_NF, Q_NR, Q_DEFL, Q_ALPHA = 0, 1, 2, 3
-GOLDEN = 0.6180339887498949
-# step control in contact (numerics; chosen by the convergence measurements in benchmarks/)
-C_STAB = 1.5  # h <= C_STAB / (largest local rate); RK4's real stability limit is 2.785
-ETA_FORCE = 0.01  # sustained contact: relative change of the contact force per step
-N_FLOOR = 0.01  # ... relative to the force plus this fraction of the free-fall force
-C_ONSET = 0.25  # ... and at most C_ONSET / (local rate at the onset)
-PULSE_WINDOW = 1.5  # fine steps for this many reference pulse times after an onset
-
-
-@njit(cache=True, inline="always")
-def corner_offset(j, hl, hw, cphi, sphi):
-    """Offset of corner j from the centroid: local (+-L/2, +-A/2) rotated by phi (MODEL.md §1)."""
-    lx = hl if (j == 0 or j == 3) else -hl
-    ly = hw if j < 2 else -hw
-    return cphi * lx - sphi * ly, sphi * lx + cphi * ly
+# run accumulators (float vector `acc`)
+(A_T_FIRST, A_T_LOSS, A_N_IMPACTS, A_DMAX, A_OUTCOME, A_STATUS, A_T_EXIT, A_X_EXIT, A_PHI_EXIT,
+ A_E_CONTACT, A_RESID, A_RESID_AMP, A_E_DAMPER, A_STEPS, A_REJECTS, A_ERR, A_EXITED, A_QMAX,
+ A_STAGE, N_ACC) = (0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 17 + N_Q, 17 + N_Q + 5)
 
 
 @njit(cache=True, inline="always")
@@ -75,363 +73,403 @@ def fence_state(t, y, p, mode):
     return y[6], y[7], aw, daw
 
 
-@njit(cache=True)
-def rhs(t, y, p, iw, dy, aux):
-    """Right-hand side of the cycle (MODEL.md §3-§6); fills dy and aux (forces, contact mask)."""
-    mode = iw[IW_MODE]
-    al, dal, aw, daw = fence_state(t, y, p, mode)
-    ca = math.cos(al)
-    sa = math.sin(al)
-    fl = p[Lp.FL]
-    kc = p[Lp.KC]
-    cd = p[Lp.CD]
-    law = p[Lp.LAW]
-    mu2 = p[Lp.MU2]
-    eps = p[Lp.EPSV]
-    inv_m1 = 1.0 / p[Lp.M1]
-    inv_i1 = 1.0 / p[Lp.I1]
-    inv_i2 = 1.0 / p[Lp.I2] if mode != FM_KINEMATIC else 0.0  # a kinematic fence: infinite mass
-    nf = 0.0
-    nr = 0.0
-    dmax = 0.0
-    mask = 0
-    tau = 0.0  # moment of the load's contact forces on the fence about O
-    p_diss = 0.0
-    p_fric = 0.0
-    p_belt = 0.0
-    stiff = 0.0
-    ddmax = 0.0  # largest closing rate D' of a force-carrying contact
-    if iw[IW_LOAD] != 0:
-        x = y[0]
-        yy = y[1]
-        vx = y[3]
-        vy = y[4]
-        om = y[5]
-        cphi = math.cos(y[2])
-        sphi = math.sin(y[2])
-        # belt friction, Goyal-Ruina ellipse (A9), MODEL.md §6
-        fx, fy, tq = belt_friction(vx - p[Lp.V], vy, om, p[Lp.FMAX], p[Lp.MMAX], p[Lp.RHO], eps)
-        p_belt = fx * vx + fy * vy + tq * om
-        s_belt = math.sqrt((vx - p[Lp.V]) ** 2 + vy * vy + (p[Lp.RHO] * om) ** 2 + eps * eps)
-        stiff = max(p[Lp.FMAX] / p[Lp.M1], p[Lp.MMAX] * p[Lp.RHO] / p[Lp.I1]) / s_belt
-        hl = 0.5 * p[Lp.LL]
-        hw = 0.5 * p[Lp.AA]
-        for j in range(4):
-            rx, ry = corner_offset(j, hl, hw, cphi, sphi)
-            gx = x + rx
-            gy = yy + ry
-            gvx = vx - om * ry
-            gvy = vy + om * rx
-            # corner-fence (MODEL.md §5.1): s along the fence, h from its line, side sigma_j
-            s = gx * ca + gy * sa
-            h = -gx * sa + gy * ca
-            sg = iw[j]
-            if s >= 0.0 and s <= fl and sg * h < 0.0:
-                D = -sg * h
-                Dd = -sg * ((-gvx * sa + gvy * ca) - dal * s)  # -sigma (v_G . n - alpha' s)
-                n, n_el = normal_force(D, Dd, kc, cd, law)
-                wsl = gvx * ca + gvy * sa  # slip along the fence
-                f = coulomb(n, wsl, mu2, eps)
-                cfx = -sg * n * sa + f * ca  # sigma N n + f d
-                cfy = sg * n * ca + f * sa
-                fx += cfx
-                fy += cfy
-                tq += rx * cfy - ry * cfx
-                tau += -sg * n * s  # moment on the fence; friction along d has none
-                nf += n
-                p_diss += (n - n_el) * Dd
-                p_fric -= f * wsl
-                if n > 0.0:
-                    mask |= 1 << j
-                    ddmax = max(ddmax, Dd)
-                    arm_n = rx * ca + ry * sa  # r x n
-                    arm_t = rx * sa - ry * ca  # r x d
-                    stiff += _contact_rate(D, n, wsl, kc, cd, law, mu2, eps,
-                                           inv_m1 + arm_n * arm_n * inv_i1 + s * s * inv_i2,
-                                           inv_m1 + arm_t * arm_t * inv_i1)
-                if D > dmax:
-                    dmax = D
-            # corner-rail (MODEL.md §5.3)
-            if gx <= 0.0 and gy < 0.0:
-                D = -gy
-                Dd = -gvy
-                n, n_el = normal_force(D, Dd, kc, cd, law)
-                f = coulomb(n, gvx, mu2, eps)
-                fx += f
-                fy += n
-                tq += rx * n - ry * f
-                nr += n
-                p_diss += (n - n_el) * Dd
-                p_fric -= f * gvx
-                if n > 0.0:
-                    mask |= 1 << (4 + j)
-                    ddmax = max(ddmax, Dd)
-                    stiff += _contact_rate(D, n, gvx, kc, cd, law, mu2, eps,
-                                           inv_m1 + rx * rx * inv_i1, inv_m1 + ry * ry * inv_i1)
-                if D > dmax:
-                    dmax = D
-        # tip-edge (MODEL.md §5.2): the tip T inside the load rectangle
+# ---------------------------------------------------------------- right-hand side
+
+@njit(cache=True, inline="always")
+def contact_sum(y, p, iw, ca, sa, dal, aux):
+    """Sum of the forces of every slot that is not APART (MODEL.md §5): on the load
+    (fx, fy, torque), the moment tau on the fence, and the dissipated powers; N sums in aux."""
+    kc, cd, law, mu2, eps = p[Lp.KC], p[Lp.CD], p[Lp.LAW], p[Lp.MU2], p[Lp.EPSV]
+    cphi = math.cos(y[2])
+    sphi = math.sin(y[2])
+    hl = 0.5 * p[Lp.LL]
+    hw = 0.5 * p[Lp.AA]
+    fx = fy = tq = tau = p_diss = p_fric = 0.0
+    for j in range(4):
+        cf = iw[IW_CODE + j]
+        cr = iw[IW_CODE + RAIL0 + j]
+        if cf == APART and cr == APART:
+            continue
+        rx, ry, gx, gy, gvx, gvy = corner_motion(j, y, hl, hw, cphi, sphi)
+        if cf != APART:
+            s, D, Dd = corner_fence_geometry(gx, gy, gvx, gvy, ca, sa, dal, iw[j])
+            a, b, c, d, n, pd, pf = corner_fence_force(rx, ry, gvx, gvy, s, D, Dd, iw[j], ca, sa,
+                                                       kc, cd, law, mu2, eps, cf == PUSH)
+            fx += a
+            fy += b
+            tq += c
+            tau += d
+            aux[AX_NF] += n
+            p_diss += pd
+            p_fric += pf
+            aux[AX_DMAX] = max(aux[AX_DMAX], D)
+        if cr != APART:
+            a, b, c, n, pd, pf = corner_rail_force(rx, ry, gvx, gvy, gy, kc, cd, law, mu2, eps, cr == PUSH)
+            fx += a
+            fy += b
+            tq += c
+            aux[AX_NR] += n
+            p_diss += pd
+            p_fric += pf
+            aux[AX_DMAX] = max(aux[AX_DMAX], -gy)
+    ct = iw[IW_CODE + TIP]
+    if ct != APART:
+        fl = p[Lp.FL]
         tx = fl * ca
         ty = fl * sa
-        dx = tx - x
-        dyy = ty - yy
-        tlx = cphi * dx + sphi * dyy  # T in the load frame
-        tly = -sphi * dx + cphi * dyy
-        if abs(tlx) < hl and abs(tly) < hw:
-            # separating-axis choice of the edge: overlap of segment O-T with the load per axis
-            olx = -(cphi * x + sphi * yy)
-            oly = sphi * x - cphi * yy
-            ovx = min(hl, max(olx, tlx)) - max(-hl, min(olx, tlx))
-            ovy = min(hw, max(oly, tly)) - max(-hw, min(oly, tly))
-            if ovx < ovy:
-                sgn = 1.0 if tlx >= 0.0 else -1.0
-                D = hl - abs(tlx)
-                nex = sgn * cphi  # outward normal of the edge x' = sgn L/2
-                ney = sgn * sphi
-            else:
-                sgn = 1.0 if tly >= 0.0 else -1.0
-                D = hw - abs(tly)
-                nex = -sgn * sphi
-                ney = sgn * cphi
-            # velocity of the tip relative to the load's material point under it
-            rvx = -dal * ty - (vx - om * dyy)
-            rvy = dal * tx - (vy + om * dx)
-            Dd = -(rvx * nex + rvy * ney)
-            n, n_el = normal_force(D, Dd, kc, cd, law)
-            tex = -ney
-            tey = nex
-            wl = -(rvx * tex + rvy * tey)  # slip of the load point along the edge
-            f = coulomb(n, wl, mu2, eps)
-            cfx = -n * nex + f * tex
-            cfy = -n * ney + f * tey
-            fx += cfx
-            fy += cfy
-            tq += dx * cfy - dyy * cfx
-            tau += ty * cfx - tx * cfy  # reaction -F at T, friction included
-            nf += n
-            p_diss += (n - n_el) * Dd
-            p_fric -= f * wl
-            if n > 0.0:
-                mask |= 1 << 8
-                ddmax = max(ddmax, Dd)
-                arm_n = dx * ney - dyy * nex
-                arm_t = dx * tey - dyy * tex
-                n_dot = -nex * sa + ney * ca  # share of the edge normal along the fence normal
-                t_dot = -tex * sa + tey * ca
-                stiff += _contact_rate(D, n, wl, kc, cd, law, mu2, eps,
-                                       inv_m1 + arm_n * arm_n * inv_i1 + n_dot * n_dot * fl * fl * inv_i2,
-                                       inv_m1 + arm_t * arm_t * inv_i1 + t_dot * t_dot * fl * fl * inv_i2)
-            if D > dmax:
-                dmax = D
-        dy[0] = vx
-        dy[1] = vy
-        dy[2] = om
-        dy[3] = fx / p[Lp.M1]
-        dy[4] = fy / p[Lp.M1]
-        dy[5] = tq / p[Lp.I1]
-    else:
-        for i in range(6):
+        tlx, tly, dx, dyy = tip_local(tx, ty, y[0], y[1], cphi, sphi)
+        D, nex, ney = tip_edge_normal(iw[IW_EDGE], tlx, tly, hl, hw, cphi, sphi)
+        a, b, c, d, n, pd, pf, Dd = tip_edge_force(D, nex, ney, tx, ty, dx, dyy, y[3], y[4], y[5], dal,
+                                                   kc, cd, law, mu2, eps, ct == PUSH)
+        fx += a
+        fy += b
+        tq += c
+        tau += d
+        aux[AX_NF] += n
+        p_diss += pd
+        p_fric += pf
+        aux[AX_DMAX] = max(aux[AX_DMAX], D)
+    return fx, fy, tq, tau, p_diss, p_fric
+
+
+@njit(cache=True, inline="always")
+def load_rhs(y, p, iw, ca, sa, dal, dy, aux):
+    """Load equations (MODEL.md §1, §5, §6): velocities, and accelerations from belt friction
+    and the contacts; the closed-form belt ride when it rides. Returns the moment on the fence."""
+    dy[0] = y[3]
+    dy[1] = y[4]
+    dy[2] = y[5]
+    if iw[IW_RIDE] != 0:
+        for i in (3, 4, 5, 9, 11, 12):
             dy[i] = 0.0
-    # fence (MODEL.md §3): I2 alpha'' = B2 (alpha_w' - alpha') + K2 (alpha_w - alpha) + tau
-    p_damp = 0.0
+        return 0.0
+    vx, vy, om = y[3], y[4], y[5]
+    bx, by, bt = belt_friction(vx - p[Lp.V], vy, om, p[Lp.FMAX], p[Lp.MMAX], p[Lp.RHO], p[Lp.EPSV])
+    fx, fy, tq, tau, p_diss, p_fric = contact_sum(y, p, iw, ca, sa, dal, aux)
+    dy[3] = (fx + bx) / p[Lp.M1]
+    dy[4] = (fy + by) / p[Lp.M1]
+    dy[5] = (tq + bt) / p[Lp.I1]
+    dy[9] = p_diss
+    dy[11] = bx * vx + by * vy + bt * om
+    dy[12] = p_fric
+    aux[AX_TAU] = tau
+    return tau
+
+
+@njit(cache=True)
+def rhs(t, y, p, iw, dy, aux):
+    """Right-hand side of the cycle in the mode of iw; fills dy and aux (contact forces).
+    Fence (MODEL.md §3): I2 alpha'' = B2 (alpha_w' - alpha') + K2 (alpha_w - alpha) + tau."""
+    mode = iw[IW_MODE]
+    al, dal, aw, daw = fence_state(t, y, p, mode)
+    for i in range(N_AUX):
+        aux[i] = 0.0
+    tau = 0.0
+    if iw[IW_LOAD] != 0:
+        tau = load_rhs(y, p, iw, math.cos(al), math.sin(al), dal, dy, aux)
+    else:
+        for i in (0, 1, 2, 3, 4, 5, 9, 11, 12):
+            dy[i] = 0.0
+    dy[8] = 0.0
     if mode == FM_KINEMATIC:
         dy[6] = 0.0
         dy[7] = 0.0
-        p_drive = -tau * daw
-    else:
-        if mode == FM_KELVIN:
-            torque = p[Lp.B2] * (daw - dal) + p[Lp.K2] * (aw - al)
-            p_damp = p[Lp.B2] * (daw - dal) ** 2
-        else:
-            torque = 0.0
-        dy[6] = dal
-        dy[7] = (torque + tau) / p[Lp.I2]
-        p_drive = torque * daw
-    dy[8] = p_damp  # read at t_c, where a step always ends (MODEL.md §11: over [0, t_c])
-    dy[9] = p_diss
-    dy[10] = p_drive
-    dy[11] = p_belt
-    dy[12] = p_fric
-    aux[AX_NF] = nf
-    aux[AX_NR] = nr
-    aux[AX_DMAX] = dmax
-    aux[AX_MASK] = mask
-    aux[AX_TAU] = tau
-    aux[AX_STIFF] = stiff
-    aux[AX_DDMAX] = ddmax
+        dy[10] = -tau * daw
+        return
+    torque = 0.0
+    if mode == FM_KELVIN:
+        torque = p[Lp.B2] * (daw - dal) + p[Lp.K2] * (aw - al)
+        dy[8] = p[Lp.B2] * (daw - dal) ** 2
+    dy[6] = dal
+    dy[7] = (torque + tau) / p[Lp.I2]
+    dy[10] = torque * daw
 
+
+# ---------------------------------------------------------------- contact slots
 
 @njit(cache=True, inline="always")
-def _contact_rate(D, n, w, kc, cd, law, mu, eps, inv_mn, inv_mt):
-    """Largest local rate [1/s] of one active contact, for the step's stability bound:
-    c/m + sqrt(k/m) of the normal law (k = dN/dD, c = dN/dD') with m the pair's effective
-    mass along the normal (1/m = inv_mn), plus the slope of the regularised friction,
-    mu N eps^2 / (w^2 + eps^2)^1.5, over the effective mass along the slip (1/m = inv_mt).
-    The rates of all contacts are summed: the trace bounds the stiffest coupled mode."""
-    if law == Lp.LAW_HERTZ:
-        rd = math.sqrt(D)
-        k = 1.5 * kc * rd
-        c = cd * math.sqrt(rd)
-    else:
-        k = kc
-        c = cd
-    ww = w * w + eps * eps
-    return c * inv_mn + math.sqrt(k * inv_mn) + mu * n * eps * eps / (ww * math.sqrt(ww)) * inv_mt
-
-
-@njit(cache=True, inline="always")
-def _pulse(w, p):
-    """Undamped pulse time [s] and peak force [N] of an impact at closing speed w [m/s] for
-    the smallest effective mass (MODEL.md §7 closed forms): Hertz 3.2181 (m^2/(k1^2 w))^0.2
-    and k1 (5 m w^2 / (4 k1))^0.6; linear pi sqrt(m/k) and w sqrt(m k)."""
-    m = p[Lp.M_RED]
-    k = p[Lp.KC]
-    w = max(w, 1e-9)
-    if p[Lp.LAW] == Lp.LAW_HERTZ:
-        return 3.2181 * (m * m / (k * k * w)) ** 0.2, k * (1.25 * m * w * w / k) ** 0.6
-    return math.pi * math.sqrt(m / k), w * math.sqrt(m * k)
+def slot_eval(k, y, p, iw, ca, sa, dal, cphi, sphi):
+    """(code, tag, gap, gap rate) of contact slot k at state y, its code moved on from the one
+    in iw (contacts.next_code); the tag is the tip's edge, or a corner's side sigma_j (§5.1);
+    the gap is > 0 when apart and is what the graze check minimises."""
+    hl = 0.5 * p[Lp.LL]
+    hw = 0.5 * p[Lp.AA]
+    kc, cd, law = p[Lp.KC], p[Lp.CD], p[Lp.LAW]
+    fl = p[Lp.FL]
+    cur = iw[IW_CODE + k]
+    d_gap = NU.CONTACT_HYSTERESIS * fl
+    d_force = NU.CONTACT_HYSTERESIS * p[Lp.FFORCE]
+    if k < TIP:
+        j = k % 4
+        rx, ry, gx, gy, gvx, gvy = corner_motion(j, y, hl, hw, cphi, sphi)
+        if k < RAIL0:
+            s, D, Dd = corner_fence_geometry(gx, gy, gvx, gvy, ca, sa, dal, iw[j])
+            side = iw[j]  # the side memory of §5.1 at this state; a change is an event
+            if s > fl:
+                side = -1 if -D * iw[j] < 0.0 else 1  # sign(h), h = -sigma D
+            elif s < 0.0:
+                side = 1
+            return next_code(cur, D, Dd, s >= 0.0 and s <= fl, kc, cd, law, d_gap, d_force), side, -D, -Dd
+        return next_code(cur, -gy, -gvy, gx <= 0.0, kc, cd, law, d_gap, d_force), 0, gy, gvy
+    tx = fl * ca
+    ty = fl * sa
+    tlx, tly, dx, dyy = tip_local(tx, ty, y[0], y[1], cphi, sphi)
+    rvx = -dal * ty - y[3]  # d/dt (T - X)
+    rvy = dal * tx - y[4]
+    tlx_d = cphi * rvx + sphi * rvy + y[5] * tly
+    tly_d = -sphi * rvx + cphi * rvy - y[5] * tlx
+    gap, rate = tip_gap(tlx, tly, tlx_d, tly_d, hl, hw)
+    edge = iw[IW_EDGE]
+    if gap < 0.0 or cur != APART:
+        edge = tip_edge_choice(y[0], y[1], cphi, sphi, tlx, tly, hl, hw)
+    D, nex, ney = tip_edge_normal(edge, tlx, tly, hl, hw, cphi, sphi)
+    Dd = -((-dal * ty - (y[3] - y[5] * dyy)) * nex + (dal * tx - (y[4] + y[5] * dx)) * ney)
+    if gap >= 0.0:
+        D = -gap  # outside the load: minus the gap
+    return next_code(cur, D, Dd, True, kc, cd, law, d_gap, d_force), edge, gap, rate
 
 
 @njit(cache=True)
-def rk4_step(t, y, f0, h, p, iw, y1, f1, aux, k2, k3, k4, tmp):
-    """One classical RK4 step of size h from (t, y) with f0 = f(t, y); f1, aux at the end."""
-    axpy(y, 0.5 * h, f0, tmp)
-    rhs(t + 0.5 * h, tmp, p, iw, k2, aux)
-    axpy(y, 0.5 * h, k2, tmp)
-    rhs(t + 0.5 * h, tmp, p, iw, k3, aux)
-    axpy(y, h, k3, tmp)
-    rhs(t + h, tmp, p, iw, k4, aux)
-    rk4_combine(y, h, f0, k2, k3, k4, y1)
-    _pin_kinematic(t + h, y1, p, iw)
-    rhs(t + h, y1, p, iw, f1, aux)
-
-
-@njit(cache=True)
-def _cut_at_contact_change(t, y, f0, h, y1, f1, mask0, p, iw, aux, k2, k3, k4, tmp, dyt, auxt):
-    """The set of active contacts changed within the step [t, t + h]: locate the first
-    change by bisection on the Hermite interpolant and end the step there -- just before
-    an onset (so the next, graded, step starts the contact), just after a separation.
-    The onset is checked against an RK4 re-step and bisected on re-steps if the
-    interpolant placed it late. Returns (step taken, time of the change; > t + h when the
-    change is an onset left to the next step)."""
-    lo = 0.0
-    hi = 1.0
-    for _ in range(50):
-        mid = 0.5 * (lo + hi)
-        hermite(y, f0, y1, f1, h, mid, tmp)
-        rhs(t + mid * h, tmp, p, iw, dyt, auxt)
-        if int(auxt[AX_MASK]) != mask0:
-            hi = mid
-        else:
-            lo = mid
-        if (hi - lo) * h < 1e-13:
-            break
-    hermite(y, f0, y1, f1, h, hi, tmp)
-    rhs(t + hi * h, tmp, p, iw, dyt, auxt)
-    onset = (int(auxt[AX_MASK]) & ~mask0) != 0
-    s_cut = lo if onset else hi
-    if s_cut * h <= 1e-12 or s_cut >= 1.0:
-        return h, t + hi * h  # the change sits at the step's start (or end): keep the step
-    hc = s_cut * h
-    rk4_step(t, y, f0, hc, p, iw, y1, f1, aux, k2, k3, k4, tmp)
-    if onset and (int(aux[AX_MASK]) & ~mask0) != 0:
-        # the RK4 state is already past the onset: bisect on RK4 re-steps instead
-        lo_h = 0.0
-        hi_h = hc
-        for _ in range(40):
-            mid = 0.5 * (lo_h + hi_h)
-            rk4_step(t, y, f0, mid, p, iw, y1, f1, aux, k2, k3, k4, tmp)
-            if (int(aux[AX_MASK]) & ~mask0) != 0:
-                hi_h = mid
-            else:
-                lo_h = mid
-            if hi_h - lo_h < 1e-13:
-                break
-        if lo_h <= 1e-12:
-            rk4_step(t, y, f0, hi_h, p, iw, y1, f1, aux, k2, k3, k4, tmp)
-            return hi_h, t + lo_h
-        hc = lo_h
-        rk4_step(t, y, f0, hc, p, iw, y1, f1, aux, k2, k3, k4, tmp)
-    if onset:
-        return hc, math.inf
-    return hc, t + hc
-
-
-@njit(cache=True, inline="always")
-def _pin_kinematic(t, y, p, iw):
-    """A kinematic fence is alpha_w itself: write it into the state (for output only)."""
-    if iw[IW_MODE] == FM_KINEMATIC:
-        aw, daw = drive_angle(t, p)
-        y[6] = aw
-        y[7] = daw
-
-
-@njit(cache=True)
-def quantity(kind, t, y, p, iw, dy, aux):
-    """A tracked quantity at (t, y): fence force, rail force, |alpha - alpha_w| or alpha."""
-    if kind == Q_NF or kind == Q_NR:
-        rhs(t, y, p, iw, dy, aux)
-        return aux[AX_NF] if kind == Q_NF else aux[AX_NR]
+def classify(t, y, p, iw, codes, gaps, rates, tags):
+    """Codes, gaps and gap rates of every slot at (t, y); returns the tip's edge. Without a
+    load every slot is apart."""
+    if iw[IW_LOAD] == 0:
+        for k in range(N_SLOTS):
+            codes[k] = APART
+            gaps[k] = math.inf
+            rates[k] = 0.0
+            tags[k] = iw[k] if k < RAIL0 else 0
+        return 0
     al, dal, aw, daw = fence_state(t, y, p, iw[IW_MODE])
-    if kind == Q_DEFL:
-        return abs(al - aw)
-    return al
-
-
-@njit(cache=True)
-def _interp(ta, ya, fa, tb, yb, fb, tc_, yc, fc, t, out):
-    """Dense output over two consecutive steps [ta, tb], [tb, tc_]."""
-    if t <= tb:
-        h = tb - ta
-        s = (t - ta) / h if h > 0.0 else 1.0
-        hermite(ya, fa, yb, fb, h, s, out)
-    else:
-        h = tc_ - tb
-        s = (t - tb) / h if h > 0.0 else 0.0
-        hermite(yb, fb, yc, fc, h, s, out)
-
-
-@njit(cache=True)
-def refine_max(kind, ta, ya, fa, tb, yb, fb, tc_, yc, fc, qb, p, iw, tmp, dy, aux):
-    """Maximum of a quantity that peaks near tb, by golden-section search on [ta, tc_]
-    over the two steps' Hermite interpolants (the peak located inside the step)."""
-    lo = ta
-    hi = tc_
-    best = qb
-    x1 = hi - GOLDEN * (hi - lo)
-    x2 = lo + GOLDEN * (hi - lo)
-    _interp(ta, ya, fa, tb, yb, fb, tc_, yc, fc, x1, tmp)
-    q1 = quantity(kind, x1, tmp, p, iw, dy, aux)
-    _interp(ta, ya, fa, tb, yb, fb, tc_, yc, fc, x2, tmp)
-    q2 = quantity(kind, x2, tmp, p, iw, dy, aux)
-    for _ in range(40):
-        if q1 > q2:
-            hi = x2
-            x2 = x1
-            q2 = q1
-            x1 = hi - GOLDEN * (hi - lo)
-            _interp(ta, ya, fa, tb, yb, fb, tc_, yc, fc, x1, tmp)
-            q1 = quantity(kind, x1, tmp, p, iw, dy, aux)
-        else:
-            lo = x1
-            x1 = x2
-            q1 = q2
-            x2 = lo + GOLDEN * (hi - lo)
-            _interp(ta, ya, fa, tb, yb, fb, tc_, yc, fc, x2, tmp)
-            q2 = quantity(kind, x2, tmp, p, iw, dy, aux)
-        if hi - lo < 1e-12 * (1.0 + abs(tc_)):
-            break
-    return max(best, q1, q2)
+    ca, sa = math.cos(al), math.sin(al)
+    cphi, sphi = math.cos(y[2]), math.sin(y[2])
+    edge = 0
+    for k in range(N_SLOTS):
+        c, e, g, r = slot_eval(k, y, p, iw, ca, sa, dal, cphi, sphi)
+        codes[k] = c
+        gaps[k] = g
+        rates[k] = r
+        tags[k] = e
+        if k == TIP:
+            edge = e
+    return edge
 
 
 @njit(cache=True, inline="always")
-def stage_of(mask):
-    """Stage of MODEL.md §10 from the set of active contacts."""
+def slot_changed(k, code, tag, iw):
+    """Has slot k left the code it had at the step's start, or (tag) a corner its side, the
+    tip the edge it pushes?"""
+    if code != iw[IW_CODE + k]:
+        return True
+    if k < RAIL0:
+        return tag != iw[k]
+    return k == TIP and code != APART and tag != iw[IW_EDGE]
+
+
+@njit(cache=True)
+def update_sides(t, y, p, iw):
+    """Side memory sigma_j (MODEL.md §5.1): beyond the tip sigma := sign(h) (0 -> +1);
+    behind the pivot sigma := +1. Returns whether any side changed."""
+    al, dal, aw, daw = fence_state(t, y, p, iw[IW_MODE])
+    ca, sa = math.cos(al), math.sin(al)
+    cphi, sphi = math.cos(y[2]), math.sin(y[2])
+    hl = 0.5 * p[Lp.LL]
+    hw = 0.5 * p[Lp.AA]
+    changed = False
+    for j in range(4):
+        rx, ry, gx, gy, gvx, gvy = corner_motion(j, y, hl, hw, cphi, sphi)
+        s = gx * ca + gy * sa
+        new = iw[j]
+        if s > p[Lp.FL]:
+            new = -1 if (-gx * sa + gy * ca) < 0.0 else 1
+        elif s < 0.0:
+            new = 1
+        if new != iw[j]:
+            iw[j] = new
+            changed = True
+    return changed
+
+
+# ---------------------------------------------------------------- events on the dense output
+
+@njit(cache=True)
+def _mask_changed(ctx, theta):
+    """Predicate for integrate.bisect: has any slot in ctx's mask changed at theta?"""
+    t0, h, y0, Q, p, iw, tmp, mask = ctx
+    I.dense_eval(y0, Q, theta, tmp, N_CTRL)
+    al, dal, aw, daw = fence_state(t0 + theta * h, tmp, p, iw[IW_MODE])
+    ca, sa = math.cos(al), math.sin(al)
+    cphi, sphi = math.cos(tmp[2]), math.sin(tmp[2])
+    for k in range(N_SLOTS):
+        if mask & (1 << k):
+            c, e, g, r = slot_eval(k, tmp, p, iw, ca, sa, dal, cphi, sphi)
+            if slot_changed(k, c, e, iw):
+                return True
+    return False
+
+
+@njit(cache=True)
+def _neg_gap(ctx, theta):
+    """-gap of one slot at theta (golden_max of it is the gap's minimum)."""
+    t0, h, y0, Q, p, iw, tmp, k = ctx
+    I.dense_eval(y0, Q, theta, tmp, N_CTRL)
+    al, dal, aw, daw = fence_state(t0 + theta * h, tmp, p, iw[IW_MODE])
+    c, e, g, r = slot_eval(k, tmp, p, iw, math.cos(al), math.sin(al), dal, math.cos(tmp[2]), math.sin(tmp[2]))
+    return -g
+
+
+@njit(cache=True)
+def _outcome_reached(ctx, theta):
+    """Predicate for integrate.bisect: has outcome `kind` (0 scraped, 1 escaped) happened?"""
+    y0, Q, p, tmp, kind = ctx
+    I.dense_eval(y0, Q, theta, tmp, N_CTRL)
+    m = outcome_margin(kind, tmp, p)
+    return m >= 0.0 if kind == 0 else m > 0.0
+
+
+@njit(cache=True, inline="always")
+def _cubic_min(g0, r0, g1, r1, h):
+    """Smallest value of the cubic Hermite interpolant of (g0, g0', g1, g1') on [0, 1]."""
+    best = min(g0, g1)
+    for i in range(1, 16):
+        s = i / 16.0
+        h00, h10, h01, h11 = I.hermite_basis(s, h)
+        best = min(best, h00 * g0 + h10 * r0 + h01 * g1 + h11 * r1)
+    return best
+
+
+@njit(cache=True)
+def graze_theta(t, h, y0, Q, p, iw, tmp, g0, r0, g1, r1, codes1):
+    """Earliest theta at which a slot apart at both ends of the step touches in between: a gap
+    whose rate changes sign is minimised on the dense output (numerics.GRAZE_FRACTION).
+    Returns (theta at the minimum, slot) or (2, -1)."""
+    best = 2.0
+    slot = -1
+    for k in range(N_SLOTS):
+        if iw[IW_CODE + k] != APART or codes1[k] != APART:
+            continue
+        if not (g0[k] > 0.0 and g1[k] > 0.0 and r0[k] < 0.0 and r1[k] > 0.0):
+            continue
+        if _cubic_min(g0[k], r0[k], g1[k], r1[k], h) >= NU.GRAZE_FRACTION * min(g0[k], g1[k]):
+            continue
+        th, ng = I.golden_max(_neg_gap, (t, h, y0, Q, p, iw, tmp, k), 0.0, 1.0, NU.PEAK_TOL)
+        if ng > 0.0 and th < best and _mask_changed((t, h, y0, Q, p, iw, tmp, 1 << k), th):
+            best = th
+            slot = k
+    return best, slot
+
+
+@njit(cache=True)
+def find_event(t, h, y0, Q, p, iw, tmp, g0, r0, g1, r1, codes1, tags1, exited):
+    """First event inside the step [t, t + h] on its dense output: (theta just past it, kind)
+    with kind 0 none (theta = 1), 1 a contact change or graze, 2 scraped, 3 escaped."""
+    mask = 0
+    for k in range(N_SLOTS):
+        if slot_changed(k, codes1[k], tags1[k], iw):
+            mask |= 1 << k
+    hi = 1.0 if mask != 0 else 2.0
+    th_g, slot = graze_theta(t, h, y0, Q, p, iw, tmp, g0, r0, g1, r1, codes1)
+    if slot >= 0 and th_g < hi:
+        hi = th_g
+        mask |= 1 << slot
+    tol = NU.EVENT_TOL * max(1.0, t) / h
+    theta = 1.0
+    kind = 0
+    if mask != 0:
+        theta = I.bisect(_mask_changed, (t, h, y0, Q, p, iw, tmp, mask), 0.0, hi, tol)[1]
+        kind = 1
+    if not exited:
+        for oc in range(2):
+            if _outcome_reached((y0, Q, p, tmp, oc), 1.0):
+                th = I.bisect(_outcome_reached, (y0, Q, p, tmp, oc), 0.0, 1.0, tol)[1]
+                if th <= theta:
+                    theta = th
+                    kind = 2 + oc
+    return theta, kind
+
+
+# ---------------------------------------------------------------- tracked maxima
+
+@njit(cache=True)
+def quantities(t, y, p, iw, aux, dy, q):
+    """The tracked quantities at (t, y): fence and rail force sums, |alpha - alpha_w|, alpha."""
+    al, dal, aw, daw = fence_state(t, y, p, iw[IW_MODE])
+    q[Q_NF] = 0.0
+    q[Q_NR] = 0.0
+    if iw[IW_LOAD] != 0 and iw[IW_RIDE] == 0:
+        rhs(t, y, p, iw, dy, aux)
+        q[Q_NF] = aux[AX_NF]
+        q[Q_NR] = aux[AX_NR]
+    q[Q_DEFL] = abs(al - aw)
+    q[Q_ALPHA] = al
+
+
+@njit(cache=True, inline="always")
+def quantities_from_aux(t, y, p, iw, aux, q):
+    """The tracked quantities at (t, y) with aux from rhs there."""
+    al, dal, aw, daw = fence_state(t, y, p, iw[IW_MODE])
+    q[Q_NF] = aux[AX_NF]
+    q[Q_NR] = aux[AX_NR]
+    q[Q_DEFL] = abs(al - aw)
+    q[Q_ALPHA] = al
+
+
+@njit(cache=True, inline="always")
+def all_finite(y):
+    for i in range(y.shape[0]):
+        if not math.isfinite(y[i]):
+            return False
+    return True
+
+
+@njit(cache=True)
+def _quantity_at(ctx, theta):
+    """One tracked quantity on the dense output (for golden_max)."""
+    t0, h, y0, Q, p, iw, tmp, aux, dy, q, kind = ctx
+    I.dense_eval(y0, Q, theta, tmp, N_STATE)
+    quantities(t0 + theta * h, tmp, p, iw, aux, dy, q)
+    return q[kind]
+
+
+@njit(cache=True)
+def track_maxima(t, h, theta_end, y0, Q, p, iw, tmp, aux, dy, q0, q1, qa, qb, qs, acc, rising):
+    """Running maxima of the tracked quantities over the step [t, t + theta_end h]: the end
+    samples, and an interior maximum (the quantity rising at the start and falling at the
+    end, judged on the dense output) located by golden-section search (MODEL.md §9).
+    rising[k] says whether quantity k rose at the start (carried over from the end of the
+    step before, or judged here after an event); on return it says so for the step's end."""
+    d = 1e-3 * theta_end
+    if rising[N_Q] != 0.0:  # the mode changed at t: judge the start on this step
+        I.dense_eval(y0, Q, d, tmp, N_STATE)
+        quantities(t + d * h, tmp, p, iw, aux, dy, qa)
+        for k in range(N_Q):
+            rising[k] = 1.0 if qa[k] > q0[k] else 0.0
+    I.dense_eval(y0, Q, theta_end - d, tmp, N_STATE)
+    quantities(t + (theta_end - d) * h, tmp, p, iw, aux, dy, qb)
+    for k in range(N_Q):
+        m = max(acc[A_QMAX + k], q0[k], q1[k])
+        if rising[k] != 0.0 and qb[k] > q1[k] and max(qb[k], q1[k], q0[k]) >= NU.PEAK_CANDIDATE * m:
+            th, qm = I.golden_max(_quantity_at, (t, h, y0, Q, p, iw, tmp, aux, dy, qs, k),
+                                  0.0, theta_end, NU.PEAK_TOL)
+            m = max(m, qm)
+        acc[A_QMAX + k] = m
+        rising[k] = 1.0 if q1[k] > qb[k] else 0.0
+    rising[N_Q] = 0.0
+
+
+# ---------------------------------------------------------------- book-keeping
+
+@njit(cache=True)
+def stage_of(iw):
+    """Stage of MODEL.md §10 from the slots that carry force."""
     nfc = 0
-    for b in (0, 1, 2, 3, 8):
-        if mask & (1 << b):
-            nfc += 1
-    rail = (mask & RAIL_BITS) != 0
+    rail = False
+    for k in range(N_SLOTS):
+        if iw[IW_CODE + k] == PUSH:
+            if k >= RAIL0 and k < TIP:
+                rail = True
+            else:
+                nfc += 1
     if nfc == 0:
         return Rs.STAGE_RAIL if rail else Rs.STAGE_S2
     if rail:
@@ -439,463 +477,339 @@ def stage_of(mask):
     return Rs.STAGE_S1 if nfc == 1 else Rs.STAGE_S3
 
 
-@njit(cache=True)
-def min_corner_x(y, p):
-    """Smallest x of the load's corners [m] (for the escape event)."""
-    cphi = math.cos(y[2])
-    sphi = math.sin(y[2])
-    hl = 0.5 * p[Lp.LL]
-    hw = 0.5 * p[Lp.AA]
-    xmin = math.inf
-    for j in range(4):
-        rx, ry = corner_offset(j, hl, hw, cphi, sphi)
-        xmin = min(xmin, y[0] + rx)
-    return xmin
+@njit(cache=True, inline="always")
+def fence_pushed(iw):
+    """Does any load-fence slot (corners on the fence, the tip) carry force?"""
+    for k in (0, 1, 2, 3, TIP):
+        if iw[IW_CODE + k] == PUSH:
+            return True
+    return False
 
 
 @njit(cache=True)
-def outcome_margin(kind, y, p):
-    """Outcome event functions (MODEL.md §9), positive once the event has happened:
-    0 scraped: y - P_max; 1 escaped: min_j x_Gj - l."""
-    if kind == 0:
-        return y[1] - p[Lp.PMAX]
-    return min_corner_x(y, p) - p[Lp.FL]
-
-
-@njit(cache=True)
-def proximity(t, y, p, iw, margin, rail):
-    """A lower bound on the distance [m] from the load to any contact (fence line near the
-    fence's span, fence tip and, if `rail`, the rail). Negative when a contact is penetrated."""
-    al, dal, aw, daw = fence_state(t, y, p, iw[IW_MODE])
-    ca = math.cos(al)
-    sa = math.sin(al)
-    fl = p[Lp.FL]
-    cphi = math.cos(y[2])
-    sphi = math.sin(y[2])
-    hl = 0.5 * p[Lp.LL]
-    hw = 0.5 * p[Lp.AA]
-    gap = math.inf
-    for j in range(4):
-        rx, ry = corner_offset(j, hl, hw, cphi, sphi)
-        gx = y[0] + rx
-        gy = y[1] + ry
-        s = gx * ca + gy * sa
-        if s >= -margin and s <= fl + margin:
-            h = -gx * sa + gy * ca
-            gap = min(gap, iw[j] * h)
-        if rail and gx <= margin:
-            gap = min(gap, gy)
-    dx = fl * ca - y[0]
-    dyy = fl * sa - y[1]
-    tlx = abs(cphi * dx + sphi * dyy) - hl
-    tly = abs(-sphi * dx + cphi * dyy) - hw
-    gap = min(gap, math.sqrt(max(tlx, 0.0) ** 2 + max(tly, 0.0) ** 2))
-    return gap
-
-
-@njit(cache=True)
-def update_sides(t, y, p, iw):
-    """Side memory sigma_j (MODEL.md §5.1): beyond the tip sigma := sign(h) (0 -> +1);
-    behind the pivot sigma := +1."""
-    al, dal, aw, daw = fence_state(t, y, p, iw[IW_MODE])
-    ca = math.cos(al)
-    sa = math.sin(al)
-    cphi = math.cos(y[2])
-    sphi = math.sin(y[2])
-    hl = 0.5 * p[Lp.LL]
-    hw = 0.5 * p[Lp.AA]
-    for j in range(4):
-        rx, ry = corner_offset(j, hl, hw, cphi, sphi)
-        gx = y[0] + rx
-        gy = y[1] + ry
-        s = gx * ca + gy * sa
-        if s > p[Lp.FL]:
-            iw[j] = -1 if (-gx * sa + gy * ca) < 0.0 else 1
-        elif s < 0.0:
-            iw[j] = 1
-
-
-@njit(cache=True)
-def _record(traj, row, t, y, p, iw, aux):
-    if row >= traj.shape[0]:
-        return row
-    al, dal, aw, daw = fence_state(t, y, p, iw[IW_MODE])
-    traj[row, 0] = t
-    for i in range(6):
-        traj[row, 1 + i] = y[i]
-    traj[row, 7] = al
-    traj[row, 8] = aw
-    traj[row, 9] = dal
-    traj[row, 10] = aux[AX_NF]
-    traj[row, 11] = aux[AX_NR]
-    traj[row, 12] = -aux[AX_TAU]  # moment of the load on the fence, paper's sign (N R > 0)
-    traj[row, 13] = stage_of(int(aux[AX_MASK])) if iw[IW_LOAD] != 0 else -1
-    for i in range(5):
-        traj[row, 14 + i] = y[8 + i]
+def record(traj, row, t, y, p, iw, aux):
+    """One trajectory row (TRAJ_COLUMNS) at (t, y), aux from rhs there; returns the row count,
+    which goes on counting past the buffer's capacity (the caller grows it and reruns)."""
+    if row < traj.shape[0]:
+        al, dal, aw, daw = fence_state(t, y, p, iw[IW_MODE])
+        traj[row, 0] = t
+        for i in range(6):
+            traj[row, 1 + i] = y[i]
+        traj[row, 7] = al
+        traj[row, 8] = aw
+        traj[row, 9] = dal
+        traj[row, 10] = aux[AX_NF]
+        traj[row, 11] = aux[AX_NR]
+        traj[row, 12] = -aux[AX_TAU]  # moment of the load on the fence, paper's sign (N R > 0)
+        traj[row, 13] = stage_of(iw) if iw[IW_LOAD] != 0 else -1
+        for i in range(5):
+            traj[row, 14 + i] = y[8 + i]
     return row + 1
 
 
+@njit(cache=True, inline="always")
+def new_push(iw, codes):
+    """Does a slot apart in iw push in codes (a contact onset)?"""
+    for k in range(N_SLOTS):
+        if iw[IW_CODE + k] == APART and codes[k] == PUSH:
+            return True
+    return False
+
+
 @njit(cache=True)
-def initial_state(p, y):
-    """MODEL.md §1: phi0; foremost corner at x = R_s, lowest at y = dP; belt velocity."""
-    cphi = math.cos(p[Lp.PHI0])
-    sphi = math.sin(p[Lp.PHI0])
-    hl = 0.5 * p[Lp.LL]
-    hw = 0.5 * p[Lp.AA]
-    xmax = -math.inf
-    ymin = math.inf
-    for j in range(4):
-        rx, ry = corner_offset(j, hl, hw, cphi, sphi)
-        xmax = max(xmax, rx)
-        ymin = min(ymin, ry)
-    for i in range(N_STATE):
-        y[i] = 0.0
-    y[0] = p[Lp.RS] - xmax
-    y[1] = p[Lp.DP] - ymin
-    y[2] = p[Lp.PHI0]
+def apply_contact_change(t, y, p, iw, codes, edge, acc):
+    """Enter the slots' new codes at an event; count onsets and losses of load-fence contact
+    (MODEL.md §10-§11); release the free fence at the first contact (§3)."""
+    before = fence_pushed(iw)
+    for k in range(N_SLOTS):
+        iw[IW_CODE + k] = codes[k]
+    iw[IW_EDGE] = edge
+    iw[IW_RIDE] = 0
+    after = fence_pushed(iw)
+    if after and not before:
+        acc[A_N_IMPACTS] += 1.0
+        if math.isnan(acc[A_T_FIRST]):
+            acc[A_T_FIRST] = t
+        if iw[IW_MODE] == FM_KINEMATIC and p[Lp.DRIVE] == Lp.DRIVE_FREE:
+            aw, daw = drive_angle(t, p)
+            iw[IW_MODE] = FM_FREE
+            y[6] = aw
+            y[7] = daw
+    if before and not after:
+        acc[A_T_LOSS] = t
+
+
+@njit(cache=True)
+def drop_load(t, y, p, iw, acc, outcome):
+    """The load leaves the run at t (outcome event, or a timeout before t_c): its results."""
+    acc[A_OUTCOME] = outcome
+    acc[A_T_EXIT] = t
+    acc[A_X_EXIT] = y[0]
+    acc[A_PHI_EXIT] = y[2]
+    acc[A_E_CONTACT] = y[9]
+    if fence_pushed(iw):
+        acc[A_T_LOSS] = t  # still touching at exit: B = t_exit
+    acc[A_EXITED] = 1.0
+    iw[IW_LOAD] = 0
+    iw[IW_RIDE] = 0
+    for k in range(N_SLOTS):
+        iw[IW_CODE + k] = APART
+
+
+@njit(cache=True)
+def try_ride(y, p, iw):
+    """A load with no contact whose slip is below numerics.SNAP_SLIP eps_v rides the belt in
+    closed form from here on (MODEL.md §8): velocity (v, 0), no spin. Returns whether it snapped."""
+    if iw[IW_LOAD] == 0 or iw[IW_RIDE] != 0:
+        return False
+    for k in range(N_SLOTS):
+        if iw[IW_CODE + k] != APART:
+            return False
+    slip2 = (y[3] - p[Lp.V]) ** 2 + y[4] ** 2 + (p[Lp.RHO] * y[5]) ** 2
+    if slip2 >= p[Lp.SNAP] ** 2:
+        return False
     y[3] = p[Lp.V]
+    y[4] = 0.0
+    y[5] = 0.0
+    iw[IW_RIDE] = 1
+    return True
+
+
+@njit(cache=True)
+def at_t_c(t, y, p, iw, acc):
+    """Results read at t_c (MODEL.md §11): residual deflection and amplitude, damper energy."""
+    al, dal, aw, daw = fence_state(t, y, p, iw[IW_MODE])
+    acc[A_RESID] = abs(al - aw)
+    amp = acc[A_RESID]
+    if iw[IW_MODE] == FM_KELVIN and p[Lp.K2] > 0.0:
+        wn = math.sqrt(p[Lp.K2] / p[Lp.I2])
+        amp = math.sqrt((al - aw) ** 2 + ((dal - daw) / wn) ** 2)
+    acc[A_RESID_AMP] = amp
+    acc[A_E_DAMPER] = y[8]
+
+
+@njit(cache=True)
+def start(p, y, iw, acc, atol):
+    """Initial state, modes, accumulators and the error scales of the run."""
+    initial_state(p, y)
+    for j in range(4):
+        iw[j] = 1
+    drive = int(p[Lp.DRIVE])
+    iw[IW_MODE] = FM_KELVIN if drive == Lp.DRIVE_FLEXIBLE else FM_KINEMATIC
+    iw[IW_LOAD] = 1
+    iw[IW_RIDE] = 1  # at t = 0 the load moves with the belt (MODEL.md §1)
+    for i in range(N_ACC):
+        acc[i] = 0.0
+    for i in (A_T_FIRST, A_T_LOSS, A_T_EXIT, A_X_EXIT, A_PHI_EXIT, A_E_CONTACT, A_RESID, A_RESID_AMP,
+              A_E_DAMPER):
+        acc[i] = math.nan
+    acc[A_OUTCOME] = Rs.TIMEOUT
+    # error scales (numerics.TOL): lengths on the fence length, angles on 1 rad, speeds on the
+    # fastest belt-or-fence speed, rates on that over the fence length
+    tol = p[Lp.TOL]
+    speed = p[Lp.V] + p[Lp.FL] * p[Lp.DAW_MAX]
+    for i, sc in enumerate((p[Lp.FL], p[Lp.FL], 1.0, speed, speed, speed / p[Lp.FL], 1.0, speed / p[Lp.FL])):
+        atol[i] = tol * sc
+
+
+@njit(cache=True)
+def after_step(t1, y1, p, iw, kind, codes1, edge1, acc):
+    """Apply the event that ended a step at t1 (find_event's kind), the side memory and the
+    closed-form ride. Returns True when the mode changed (the right-hand side must be
+    evaluated anew at t1)."""
+    changed = kind != 0
+    if kind == 1:
+        apply_contact_change(t1, y1, p, iw, codes1, edge1, acc)
+    elif kind >= 2:
+        drop_load(t1, y1, p, iw, acc, Rs.SCRAPED if kind == 2 else Rs.ESCAPED)
+    if iw[IW_LOAD] != 0:
+        changed |= update_sides(t1, y1, p, iw)
+        changed |= try_ride(y1, p, iw)
+    if iw[IW_MODE] == FM_KINEMATIC:
+        y1[6], y1[7] = drive_angle(t1, p)
+    return changed
+
+
+@njit(cache=True)
+def end_of_load(t, y, p, iw, acc):
+    """t reached t_max with the load on the belt (MODEL.md §9: timeout). Before t_c the load is
+    dropped and the fence runs on alone to t_c (its results are over [0, max(t_exit, t_c)])."""
+    drop_load(t, y, p, iw, acc, Rs.TIMEOUT)
 
 
 @njit(cache=True)
 def cycle_kernel(p, out, traj):
     """Simulate one work cycle; write CYCLE_RESULTS into out and the time series into traj
-    (rows of TRAJ_COLUMNS, as many as fit). Returns the number of trajectory rows."""
+    (rows of TRAJ_COLUMNS, as many as fit). Returns the number of rows the run produced."""
     n = N_STATE
     y = np.empty(n)
-    f0 = np.empty(n)
     y1 = np.empty(n)
-    f1 = np.empty(n)
-    ya = np.empty(n)  # the step before (for peaks located across two steps)
-    fa = np.empty(n)
-    k2 = np.empty(n)
-    k3 = np.empty(n)
-    k4 = np.empty(n)
     tmp = np.empty(n)
-    dyt = np.empty(n)
+    dy = np.empty(n)
+    K = np.empty((I.N_STAGES, n))
+    Q = np.zeros((4, n))
     aux = np.zeros(N_AUX)
-    auxt = np.zeros(N_AUX)
-    iw = np.ones(6, dtype=np.int64)
-    drive = int(p[Lp.DRIVE])
-    iw[IW_MODE] = FM_KELVIN if drive == Lp.DRIVE_FLEXIBLE else FM_KINEMATIC
-    iw[IW_LOAD] = 1
+    iw = np.zeros(N_IW, np.int64)
+    codes1 = np.zeros(N_SLOTS, np.int64)
+    g0 = np.empty(N_SLOTS)
+    r0 = np.empty(N_SLOTS)
+    g1 = np.empty(N_SLOTS)
+    r1 = np.empty(N_SLOTS)
+    qv = np.zeros((5, N_Q))  # q0, q1, qa, qb, scratch
+    acc = np.empty(N_ACC)
+    atol = np.empty(N_CTRL)
+    start(p, y, iw, acc, atol)
+    tags1 = np.zeros(N_SLOTS, np.int64)
+    iw[IW_EDGE] = classify(0.0, y, p, iw, codes1, g0, r0, tags1)
+    apply_contact_change(0.0, y, p, iw, codes1, iw[IW_EDGE], acc)
+    iw[IW_RIDE] = 1 if fence_free_of_load(iw) else 0
+    rhs(0.0, y, p, iw, K[0], aux)
+    quantities_from_aux(0.0, y, p, iw, aux, qv[0])
+    for k in range(N_Q):
+        acc[A_QMAX + k] = qv[0, k]
+    row = record(traj, 0, 0.0, y, p, iw, aux)
+    rising = np.ones(N_Q + 1)  # per quantity: rising at the step's start; last: judge it anew
+    row = run(p, y, y1, tmp, dy, K, Q, aux, iw, codes1, tags1, g0, r0, g1, r1, qv, acc, atol, rising, traj, row)
+    finish(p, y, iw, acc, out)
+    return row
+
+
+@njit(cache=True, inline="always")
+def fence_free_of_load(iw):
+    """No slot of the load is in contact."""
+    for k in range(N_SLOTS):
+        if iw[IW_CODE + k] != APART:
+            return False
+    return True
+
+
+@njit(cache=True)
+def run(p, y, y1, tmp, dy, K, Q, aux, iw, codes1, tags1, g0, r0, g1, r1, qv, acc, atol, rising, traj, row):
+    """The step loop of the cycle (module docstring). Returns the trajectory row count."""
+    method = int(p[Lp.METHOD])
+    tol = p[Lp.TOL]
     tc = p[Lp.TC]
-    tmax = p[Lp.TMAX]
-    dt_c = p[Lp.DT_COARSE]
-    dt_f = p[Lp.DT_FINE]
     half_side = 0.5 * min(p[Lp.LL], p[Lp.AA])
-    r_load = 0.5 * math.sqrt(p[Lp.LL] ** 2 + p[Lp.AA] ** 2)
-    for i in range(Rs.N_CYCLE_RESULTS):
-        out[i] = 0.0
-    initial_state(p, y)
-    _pin_kinematic(0.0, y, p, iw)
-    rhs(0.0, y, p, iw, f0, aux)
-    row = _record(traj, 0, 0.0, y, p, iw, aux)
     t = 0.0
-    ta = 0.0
-    for i in range(n):
-        ya[i] = y[i]
-        fa[i] = f0[i]
-    mask0 = int(aux[AX_MASK])
-    # running maxima and their last two samples
-    qmax = np.zeros(4)
-    qprev = np.zeros(4)
-    qcur = np.zeros(4)
-    for k in range(4):
-        qcur[k] = quantity(k, 0.0, y, p, iw, dyt, auxt)
-        qprev[k] = qcur[k]
-        qmax[k] = qcur[k]
-    stage_time = np.zeros(5)
-    t_first = math.nan
-    t_last_loss = math.nan
-    n_impacts = 0
-    dmax_all = 0.0
-    residual = math.nan
-    e_damper = math.nan
-    outcome = Rs.TIMEOUT
-    status = Rs.ST_OK
-    t_exit = tmax
-    x_exit = math.nan
-    phi_exit = math.nan
-    e_contact = math.nan
-    steps = 0
-    max_steps = 50_000_000
-    phase = 0
-    exited = False
-    v = p[Lp.V]
-    h_grade = math.inf
-    t_change = 0.0
-    t_pulse_end = 0.0
-    dt_pulse = dt_f
-    h_prev = dt_f
-    h_force = math.inf
-    n_old = 0.0
-    n_floor = N_FLOOR * p[Lp.FFORCE]
-    eta = ETA_FORCE * p[Lp.STEPF]  # every step control scales with step_factor
-    c_stab = min(C_STAB, C_STAB * p[Lp.STEPF])
+    h = p[Lp.DT] if method == I.METHOD_RK4 else 0.1 * p[Lp.H_MAX]
     while True:
-        t_end = tmax if not exited else tc
-        if t >= t_end - 1e-12 * max(1.0, t_end) or steps >= max_steps:
-            if steps >= max_steps:
-                status = Rs.ST_MAXSTEPS
-            elif not exited and t < tc:
-                # a timeout before t_c (t_max < t_c): the cycle's results still run to t_c
-                # (deflection over [0, max(t_exit, t_c)], residual at t_c, MODEL.md §11), so
-                # the load is dropped here, as after an exit, and the fence goes on alone
-                x_exit = y[0]
-                phi_exit = y[2]
-                e_contact = y[9]
-                t_exit = t
-                if (mask0 & FENCE_BITS) != 0:
-                    t_last_loss = t
-                exited = True
-                iw[IW_LOAD] = 0
-                mask0 = 0
-                rhs(t, y, p, iw, f0, aux)
+        t_end = tc if acc[A_EXITED] != 0.0 else p[Lp.TMAX]
+        if t >= t_end - 1e-12 * max(1.0, t_end):
+            if acc[A_EXITED] == 0.0 and t < tc:
+                end_of_load(t, y, p, iw, acc)
+                rhs(t, y, p, iw, K[0], aux)
                 continue
             break
-        # ---- choose the step ----
-        if phase == 0:
-            margin = (v + p[Lp.FL] * p[Lp.DAW_MAX]) * dt_c * 2.0
-            # the load rides the belt in closed form (y constant): only the fence can reach it
-            if iw[IW_LOAD] != 0 and proximity(t, y, p, iw, margin, False) < margin:
-                phase = 1
-        if exited:
-            h = dt_c
-        elif phase == 0:
-            h = dt_c
-        else:
-            speed = math.sqrt(y[3] ** 2 + y[4] ** 2) + abs(y[5]) * r_load \
-                + p[Lp.FL] * (abs(y[7]) + p[Lp.DAW_MAX])
-            margin = 2.0 * speed * dt_c
-            gap = proximity(t, y, p, iw, margin, True) if mask0 == 0 else 0.0
-            if mask0 == 0 and gap >= margin:
-                h = dt_c  # no contact within reach of a coarse step
-            elif mask0 == 0:
-                # a contact is near: no contact can begin within gap / speed, so the steps
-                # shrink geometrically with the gap down to the fine step (no tunnelling)
-                # down to a quarter of the pulse time at that closing speed, so that a whole
-                # contact cannot fall between two step ends
-                h_floor = max(dt_f, 0.25 * p[Lp.STEPF] * _pulse(speed, p)[0])
-                h = min(dt_c, max(h_floor, 0.5 * gap / speed))
-            elif t < t_pulse_end:
-                h = dt_pulse  # an impact pulse is under way
-            else:
-                # a sustained contact (sliding, S3/S4): the step follows the contact force,
-                # at most ETA_FORCE of its size (plus a floor) per step, growing at most 2x
-                h = min(dt_c, 2.0 * h_prev, h_force)
-            if aux[AX_STIFF] > 0.0:
-                h = min(h, c_stab / aux[AX_STIFF])  # RK4 stability on the stiffest local mode
-            h = min(h, h_grade)
-        if t < tc and t + h > tc:
+        if acc[A_STEPS] + acc[A_REJECTS] >= NU.MAX_STEPS:
+            acc[A_STATUS] = Rs.ST_MAXSTEPS
+            break
+        if method == I.METHOD_RK4:
+            h = p[Lp.DT]
+        h = min(h, p[Lp.H_MAX], t_end - t)
+        hits_tc = t < tc and t + h >= tc
+        if hits_tc:
             h = tc - t
-        if t + h > t_end:
-            h = t_end - t
-        # ---- step ----
-        if phase == 0 or exited:
-            # the load rides the belt in closed form (or has left): step the fence alone
-            iw[IW_LOAD] = 0
-            rhs(t, y, p, iw, f0, aux)
-            if not exited:
-                f0[0] = v  # the closed-form ride, for the step's Hermite interpolant
-            rk4_step(t, y, f0, h, p, iw, y1, f1, aux, k2, k3, k4, tmp)
-            if not exited:
-                iw[IW_LOAD] = 1
-                y1[0] = y[0] + v * h
-                for i in (1, 2, 4, 5):
-                    y1[i] = y[i]
-                y1[3] = v
-                rhs(t + h, y1, p, iw, f1, aux)
+        err = I.take_step(method, rhs, t, y, h, p, iw, K, tmp, y1, aux, atol, tol, N_CTRL)
+        if not (err <= 1.0):  # rejected (a NaN error too)
+            h = I.next_step(h, err, NU.SAFETY, NU.FAC_MIN, 1.0) if err == err else NU.FAC_MIN * h
+            acc[A_REJECTS] += 1.0
+            if h < NU.H_MIN * max(1.0, t):
+                acc[A_STATUS] = Rs.ST_UNDERFLOW
+                break
+            continue
+        acc[A_STEPS] += 1.0
+        acc[A_ERR] += err * tol
+        I.dense_coeffs(method, K, h, y, y1, Q, N_STATE)
+        edge1 = classify(t + h, y1, p, iw, codes1, g1, r1, tags1)
+        theta, kind = find_event(t, h, y, Q, p, iw, tmp, g0, r0, g1, r1, codes1, tags1, acc[A_EXITED] != 0.0)
+        if kind == 0:
+            t1 = tc if hits_tc else t + h
         else:
-            rk4_step(t, y, f0, h, p, iw, y1, f1, aux, k2, k3, k4, tmp)
-            mask1 = int(aux[AX_MASK])
-            if h_grade < math.inf:
-                h_grade *= 2.0
-                if h_grade > dt_f:
-                    h_grade = math.inf
-            if mask1 != mask0:
-                h, t_change = _cut_at_contact_change(t, y, f0, h, y1, f1, mask0, p, iw, aux,
-                                                     k2, k3, k4, tmp, dyt, auxt)
-                if (int(aux[AX_MASK]) & ~mask0) != 0 or t_change > t + h:
-                    # an onset in or right after this step: the damped law's force grows
-                    # like (t - t_A)^(1/4), which costs RK4 its order on a step that starts
-                    # there; grade the next steps from dt_fine/1024, doubling, so that each
-                    # spans about [t, 2t] of the singular term
-                    h_grade = dt_f / 1024.0
-        steps += 1
-        t1 = t + h
-        h_prev = h
-        if iw[IW_LOAD] != 0 and (int(aux[AX_MASK]) & ~mask0) != 0:
-            # an onset: resolve its pulse with Lp.STEPS_PER_PULSE steps of the pulse time at
-            # its own closing speed, unless its predicted peak is below the force floor (a
-            # light touch, left to the force-following control). A contact can also begin at
-            # a finite depth (a corner handed from the rail to the fence at the pivot): then
-            # the local rate of the contact at the onset bounds the step too.
-            t_pulse, f_pulse = _pulse(aux[AX_DDMAX], p)
-            if f_pulse >= n_floor:
-                t_pulse_end = max(t_pulse_end, t1 + PULSE_WINDOW * t_pulse)
-                dt_pulse = p[Lp.STEPF] * t_pulse / Lp.STEPS_PER_PULSE
-                if aux[AX_STIFF] > 0.0:
-                    dt_pulse = min(dt_pulse, p[Lp.STEPF] * C_ONSET / aux[AX_STIFF])
-                dt_pulse = max(dt_f / 16.0, min(dt_c, dt_pulse))
-        if iw[IW_LOAD] != 0:
-            n_new = aux[AX_NF] + aux[AX_NR]
-            rate = abs(n_new - n_old) / h
-            h_force = eta * (max(n_new, n_old) + n_floor) / rate if rate > 0.0 else math.inf
-            n_old = n_new
-        if t < tc and abs(t1 - tc) < 1e-12 * max(1.0, tc):
-            t1 = tc  # steps end on t_c exactly (residual deflection, damper energy)
-        mask1 = int(aux[AX_MASK]) if iw[IW_LOAD] != 0 else 0
-        # ---- failure checks (MODEL.md §5) ----
-        finite = True
-        for i in range(n):
-            if not math.isfinite(y1[i]):
-                finite = False
-        if not finite:
-            status = Rs.ST_NONFINITE
-            t_exit = t1
-            break
-        if aux[AX_DMAX] > dmax_all:
-            dmax_all = aux[AX_DMAX]
-        if dmax_all > half_side:
-            status = Rs.ST_PENETRATION
-            t_exit = t1
-            break
-        # ---- contact events and stage time ----
-        fb0 = mask0 & FENCE_BITS
-        fb1 = mask1 & FENCE_BITS
-        if mask1 == mask0 or t_change > t1:
-            t_change = t1
-        if not exited:
-            stage_time[stage_of(mask0)] += t_change - t
-            stage_time[stage_of(mask1)] += t1 - t_change
-            if fb0 == 0 and fb1 != 0:
-                n_impacts += 1
-                if math.isnan(t_first):
-                    t_first = t_change
-                if iw[IW_MODE] == FM_KINEMATIC and drive == Lp.DRIVE_FREE:
-                    # the free fence's drive lets go at the first contact (MODEL.md §3)
-                    iw[IW_MODE] = FM_FREE
-                    aw, daw = drive_angle(t1, p)
-                    y1[6] = aw
-                    y1[7] = daw
-                    rhs(t1, y1, p, iw, f1, aux)
-            if fb0 != 0 and fb1 == 0:
-                t_last_loss = t_change
-        # ---- maxima located inside the step ----
-        for k in range(4):
-            if k <= Q_NR and (exited or phase == 0):
-                continue
-            if k == Q_NF:
-                qk = aux[AX_NF]  # f1 was evaluated at (t1, y1): its forces are the samples
-            elif k == Q_NR:
-                qk = aux[AX_NR]
-            else:
-                qk = quantity(k, t1, y1, p, iw, dyt, auxt)
-            if qcur[k] >= qprev[k] and qcur[k] >= qk and qcur[k] > 0.0 and qcur[k] >= qmax[k] * 0.999:
-                qm = refine_max(k, ta, ya, fa, t, y, f0, t1, y1, f1, qcur[k], p, iw, tmp, dyt, auxt)
-                if qm > qmax[k]:
-                    qmax[k] = qm
-            if qk > qmax[k]:
-                qmax[k] = qk
-            qprev[k] = qcur[k]
-            qcur[k] = qk
-        if t1 == tc:
-            al, dal, aw, daw = fence_state(tc, y1, p, iw[IW_MODE])
-            residual = abs(al - aw)
-            e_damper = y1[8]
-        # ---- outcome events (MODEL.md §9), located inside the step ----
-        if not exited:
-            kind = -1
-            if outcome_margin(0, y1, p) >= 0.0:
-                kind = 0
-            elif outcome_margin(1, y1, p) > 0.0:
-                kind = 1
-            if kind >= 0:
-                lo = 0.0
-                hi = 1.0
-                for _ in range(60):
-                    mid = 0.5 * (lo + hi)
-                    hermite(y, f0, y1, f1, h, mid, tmp)
-                    if outcome_margin(kind, tmp, p) >= 0.0:
-                        hi = mid
-                    else:
-                        lo = mid
-                hermite(y, f0, y1, f1, h, hi, tmp)
-                t_exit = t + hi * h
-                outcome = Rs.SCRAPED if kind == 0 else Rs.ESCAPED
-                x_exit = tmp[0]
-                phi_exit = tmp[2]
-                e_contact = tmp[9]
-                # the stage time of the step is counted to t_exit only
-                stage_time[stage_of(mask1)] -= t1 - t_exit
-                if fb1 != 0:
-                    t_last_loss = t_exit  # still touching at exit: B = t_exit
-                exited = True
-                iw[IW_LOAD] = 0
-                for i in range(n):
-                    y1[i] = tmp[i]
-                t1 = t_exit
-                _pin_kinematic(t1, y1, p, iw)
-                rhs(t1, y1, p, iw, f1, aux)
-                mask1 = 0
-                row = _record(traj, row, t1, y1, p, iw, aux)
-        if not exited:
-            update_sides(t1, y1, p, iw)
-            row = _record(traj, row, t1, y1, p, iw, aux)
-        elif t1 > t_exit:
-            row = _record(traj, row, t1, y1, p, iw, aux)
-        # ---- advance ----
-        ta = t
-        for i in range(n):
-            ya[i] = y[i]
-            fa[i] = f0[i]
+            t1 = t + theta * h
+            I.dense_eval(y, Q, theta, y1, N_STATE)
+            edge1 = classify(t1, y1, p, iw, codes1, g1, r1, tags1)
+        if kind == 0:
+            quantities_from_aux(t1, y1, p, iw, aux, qv[1])  # aux of the FSAL stage f(t1, y1)
+        else:
+            quantities(t1, y1, p, iw, aux, dy, qv[1])
+        track_maxima(t, h, theta, y, Q, p, iw, tmp, aux, dy, qv[0], qv[1], qv[2], qv[3], qv[4], acc, rising)
+        if acc[A_EXITED] == 0.0:
+            acc[A_STAGE + stage_of(iw)] += t1 - t
+        h_next = I.next_step(h, err, NU.SAFETY, NU.FAC_MIN, NU.FAC_MAX)
+        onset = kind == 1 and new_push(iw, codes1)
+        if after_step(t1, y1, p, iw, kind, codes1, edge1, acc):
+            rising[N_Q] = 1.0
+            if onset:
+                h_next = min(h_next, NU.ONSET_STEP * pulse_time(p[Lp.LAW], p[Lp.M1], p[Lp.KC], atol[3] / tol))
+            classify(t1, y1, p, iw, codes1, g1, r1, tags1)
+            rhs(t1, y1, p, iw, K[0], aux)  # f(t1, y1) in the new mode
+        else:
+            for i in range(N_STATE):
+                K[0, i] = K[6, i]  # first same as last
+        quantities_from_aux(t1, y1, p, iw, aux, qv[0])
+        for k in range(N_Q):
+            acc[A_QMAX + k] = max(acc[A_QMAX + k], qv[0, k])
+        acc[A_DMAX] = max(acc[A_DMAX], aux[AX_DMAX])
+        for i in range(N_SLOTS):
+            g0[i] = g1[i]
+            r0[i] = r1[i]
+        for i in range(N_STATE):
             y[i] = y1[i]
-            f0[i] = f1[i]
         t = t1
-        mask0 = mask1
-        if exited and t >= tc:
+        if t == tc:
+            at_t_c(t, y, p, iw, acc)
+        row = record(traj, row, t, y, p, iw, aux)
+        if not all_finite(y):
+            acc[A_STATUS] = Rs.ST_NONFINITE
             break
-    if math.isnan(e_contact):
-        e_contact = y[9]
-    if status != Rs.ST_OK:
-        outcome = Rs.FAILED
-    if outcome == Rs.TIMEOUT and math.isnan(x_exit):
-        x_exit = y[0]
-        phi_exit = y[2]
-        t_exit = min(t, tmax)
-        if (mask0 & FENCE_BITS) != 0:
-            t_last_loss = t_exit
-    if math.isnan(residual) and t >= tc:
-        al, dal, aw, daw = fence_state(tc, y, p, iw[IW_MODE])
-        residual = abs(al - aw)
-    out[Rs.RC_OUTCOME] = outcome
-    out[Rs.RC_T_EXIT] = t_exit
-    out[Rs.RC_PEAK_FORCE] = qmax[Q_NF]
-    out[Rs.RC_PEAK_RAIL_FORCE] = qmax[Q_NR]
+        if acc[A_DMAX] > half_side:
+            acc[A_STATUS] = Rs.ST_PENETRATION
+            break
+        h = h_next
+    return row
+
+
+@njit(cache=True)
+def finish(p, y, iw, acc, out):
+    """The results of MODEL.md §11 from the run's accumulators."""
+    if acc[A_STATUS] != Rs.ST_OK:
+        acc[A_OUTCOME] = Rs.FAILED
+        if math.isnan(acc[A_T_EXIT]):
+            acc[A_T_EXIT] = math.nan
+    if acc[A_EXITED] == 0.0 and acc[A_STATUS] == Rs.ST_OK:
+        drop_load(p[Lp.TMAX], y, p, iw, acc, Rs.TIMEOUT)
+    if math.isnan(acc[A_E_CONTACT]):
+        acc[A_E_CONTACT] = y[9]
+    for k in range(Rs.N_CYCLE_RESULTS):
+        out[k] = 0.0
+    nf = acc[A_QMAX + Q_NF]
+    out[Rs.RC_OUTCOME] = acc[A_OUTCOME]
+    out[Rs.RC_T_EXIT] = acc[A_T_EXIT]
+    out[Rs.RC_PEAK_FORCE] = nf
+    out[Rs.RC_PEAK_RAIL_FORCE] = acc[A_QMAX + Q_NR]
     out[Rs.RC_FREEFALL_FORCE] = p[Lp.FFORCE]
-    out[Rs.RC_OVERLOAD] = qmax[Q_NF] / p[Lp.FFORCE]
-    out[Rs.RC_SAFE] = 1.0 if qmax[Q_NF] <= p[Lp.FFORCE] else 0.0
-    out[Rs.RC_DEFLECTION_OK] = 1.0 if qmax[Q_DEFL] <= p[Lp.DAPERM] else 0.0
-    out[Rs.RC_DEFLECTION_MAX] = qmax[Q_DEFL]
-    out[Rs.RC_RESIDUAL_DEFLECTION] = residual
-    out[Rs.RC_ALPHA_MAX] = qmax[Q_ALPHA]
-    out[Rs.RC_DAMPER_ENERGY] = e_damper if not math.isnan(e_damper) else y[8]
-    out[Rs.RC_CONTACT_ENERGY] = e_contact
-    out[Rs.RC_T_FIRST_CONTACT] = t_first
-    if math.isnan(t_first):
+    out[Rs.RC_OVERLOAD] = nf / p[Lp.FFORCE]
+    out[Rs.RC_SAFE] = 1.0 if nf <= p[Lp.FFORCE] else 0.0
+    out[Rs.RC_DEFLECTION_MAX] = acc[A_QMAX + Q_DEFL]
+    out[Rs.RC_DEFLECTION_OK] = 1.0 if acc[A_QMAX + Q_DEFL] <= p[Lp.DAPERM] else 0.0
+    out[Rs.RC_RESIDUAL_DEFLECTION] = acc[A_RESID]
+    out[Rs.RC_RESIDUAL_AMPLITUDE] = acc[A_RESID_AMP]
+    out[Rs.RC_ALPHA_MAX] = acc[A_QMAX + Q_ALPHA]
+    out[Rs.RC_DAMPER_ENERGY] = acc[A_E_DAMPER] if not math.isnan(acc[A_E_DAMPER]) else y[8]
+    out[Rs.RC_CONTACT_ENERGY] = acc[A_E_CONTACT]
+    out[Rs.RC_T_FIRST_CONTACT] = acc[A_T_FIRST]
+    if math.isnan(acc[A_T_FIRST]):
         out[Rs.RC_CONTACT_TIME] = 0.0
     else:
-        b = t_last_loss if not math.isnan(t_last_loss) else t_exit
-        out[Rs.RC_CONTACT_TIME] = b - t_first
-    out[Rs.RC_N_IMPACTS] = n_impacts
-    out[Rs.RC_T_S1] = stage_time[Rs.STAGE_S1]
-    out[Rs.RC_T_S2] = stage_time[Rs.STAGE_S2]
-    out[Rs.RC_T_S3] = stage_time[Rs.STAGE_S3]
-    out[Rs.RC_T_S4] = stage_time[Rs.STAGE_S4]
-    out[Rs.RC_T_RAIL] = stage_time[Rs.STAGE_RAIL]
-    out[Rs.RC_X_EXIT] = x_exit
-    out[Rs.RC_PHI_EXIT] = phi_exit
-    out[Rs.RC_MAX_PENETRATION] = dmax_all
-    out[Rs.RC_N_STEPS] = steps
-    out[Rs.RC_STATUS] = status
-    return row
+        b = acc[A_T_LOSS] if not math.isnan(acc[A_T_LOSS]) else acc[A_T_EXIT]
+        out[Rs.RC_CONTACT_TIME] = b - acc[A_T_FIRST]
+    out[Rs.RC_N_IMPACTS] = acc[A_N_IMPACTS]
+    for i, rc in enumerate((Rs.RC_T_S1, Rs.RC_T_S2, Rs.RC_T_S3, Rs.RC_T_S4, Rs.RC_T_RAIL)):
+        out[rc] = acc[A_STAGE + i]
+    out[Rs.RC_X_EXIT] = acc[A_X_EXIT]
+    out[Rs.RC_PHI_EXIT] = acc[A_PHI_EXIT]
+    out[Rs.RC_MAX_PENETRATION] = acc[A_DMAX]
+    out[Rs.RC_N_STEPS] = acc[A_STEPS]
+    out[Rs.RC_N_REJECTED] = acc[A_REJECTS]
+    out[Rs.RC_ERROR_ESTIMATE] = acc[A_ERR]
+    out[Rs.RC_STATUS] = acc[A_STATUS]

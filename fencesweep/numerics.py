@@ -1,0 +1,97 @@
+"""Every step size and tolerance of the engine, in one place, each with its reason.
+
+The physics has no tunable constants: these settle only how finely the equations of
+MODEL.md are solved. setup.py turns them into the kernel's parameter vector (layout.py);
+the kernels read them from there. `benchmarks/work_precision.py` measures what they buy.
+"""
+from __future__ import annotations
+
+#: Integrators (params `integrator`): the default embedded pair with error control, and the
+#: fixed-step classical RK4 of the first engine, kept as the baseline row of the benchmarks.
+INTEGRATORS = ("dopri5", "rk4")
+
+#: Local error tolerance at step_factor = 1. Every step keeps the difference of the 5th- and
+#: 4th-order solutions below TOL relative to the state (rtol) and to the scene's scales (atol:
+#: TOL x fence length for positions, x 1 rad for angles, x the fastest drive-or-belt speed
+#: for velocities). Chosen as the loosest power of ten at which the widened validation set
+#: (benchmarks/validation_scenes.yaml) stays within 1e-4 of the reference in peak_force,
+#: deflection_max and t_exit (results/work_precision.md, rows "dopri5 step_factor=...").
+TOL = 1e-7
+
+#: Tolerance of the one-pulse scenes (`impact`, `freefall`, and the free-fall force that every
+#: overload is divided by) at step_factor = 1: a pulse costs ~50 steps even this tight, so
+#: their results are exact to ~1e-9 for the price of microseconds.
+IMPACT_TOL = 1e-11
+
+#: step_factor scales the tolerance as TOL * step_factor**TOL_EXPONENT: DOPRI5's local error
+#: goes like h^5, so the steps scale about like step_factor (0.1: steps ~10x shorter), the
+#: meaning step_factor had with fixed steps.
+TOL_EXPONENT = 5.0
+
+#: Tolerance floor: positions of order 1 m lose ~1e-16 relative per operation and a cycle
+#: takes ~1e3 steps, so a local error below ~1e-13 cannot be met and would stall the step.
+TOL_MIN = 1e-13
+
+#: Step controller (Hairer, Norsett & Wanner I, II.4): safety factor on the predicted step and
+#: the bounds on its growth per step, their recommended values.
+SAFETY = 0.9
+FAC_MIN = 0.2
+FAC_MAX = 10.0
+
+#: Largest step, as a fraction of the shortest time scale of the
+#: fence (the cycle t_c, the element's natural period 2 pi sqrt(I2/K2)): a step then spans less
+#: than a quarter of any oscillation of the fence, so each gap function of MODEL.md §5 has at
+#: most one interior extremum in it, which the graze check and the peak finder (scenes/cycle.py)
+#: rely on (after the exit too: a free fence's deflection is not unimodal over a long step).
+H_MAX_PER_PERIOD = 1.0 / 12.0
+
+#: Events (contact changes, outcome events) are bisected on the dense output to this width
+#: [s] (relative to max(1, t)): 40 halvings of a 1e-2 s step; far below the 1 ms floor of the
+#: time results and the ~1e-6 s error of the dense output itself.
+EVENT_TOL = 1e-12
+
+#: First step after a contact onset, as a fraction of the undamped pulse time of the load at the
+#: fastest closing speed (contact.pulse_time): the damped law's force grows like (t - t_A)^(1/4)
+#: from the onset, which the error estimate of a long first step misjudges (a 10 us tip clip
+#: came out 4e-3 too strong), and a graze lasts far less than a pulse; from this start the
+#: controller grows the steps by up to 10x a step, so the start costs ~4 steps per onset.
+ONSET_STEP = 1e-6
+
+#: Contact hysteresis, relative to the fence length (gaps) and to the free-fall force (forces):
+#: a touching contact is released only when its gap exceeds it, and switches between pushing
+#: and clipped only when its Kelvin force is beyond it. A load resting at zero depth or zero
+#: force (long_near starts with a corner at the pivot, on the fence line) otherwise toggles
+#: on rounding noise, ~1e-16 of the scales, at every step. 1e-10 l is ~1e-3 of the position
+#: accuracy at the default tolerance: no result can see it.
+CONTACT_HYSTERESIS = 1e-10
+
+#: A graze is looked for inside a step when a gap with an interior minimum (its rate changes
+#: sign over the step) has a cubic-Hermite minimum below this fraction of its smaller end
+#: value; the minimum is then searched on the step's dense output.
+GRAZE_FRACTION = 0.5
+
+#: Peaks of the tracked quantities (forces, deflection, alpha) are refined by golden-section
+#: search on the dense output of the two steps around a local maximum of the samples, to
+#: this width in units of the window (value error ~ (width)^2: far below 1e-6 relative), and
+#: only for local maxima within PEAK_CANDIDATE of the running maximum.
+PEAK_TOL = 1e-6
+PEAK_CANDIDATE = 0.999
+
+#: Slip speed [m/s, relative to eps_v] under which a load without contacts is put back on the
+#: belt's closed-form ride (MODEL.md §8). Below eps_v the belt friction decays the slip at the
+#: rate lambda = mu1 g / eps_v (~4e3 1/s by default), so the ride that remains costs a position
+#: error of at most slip / lambda = 1e-3 eps_v^2 / (mu1 g) (~2.5e-10 m), and the explicit
+#: method no longer has to step that stiff decay.
+SNAP_SLIP = 1e-3
+
+#: Fixed step of the RK4 baseline [s] at step_factor = 1 (params `dt` overrides it): 1/50 of the
+#: default pulse (~5e-4 s for small loads), i.e. about the first engine's finest step.
+DT_RK4 = 1e-5
+
+#: Step budget of one cycle: far above the ~1e3 steps of an ordinary cycle; a run that needs
+#: more ends with status "failed: step budget exhausted".
+MAX_STEPS = 5_000_000
+
+#: A step below this [s, relative to max(1, t)] cannot advance t in double precision: the run
+#: ends with status "failed: step size underflow".
+H_MIN = 1e-14

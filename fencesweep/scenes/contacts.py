@@ -1,0 +1,143 @@
+"""The contacts of the load (MODEL.md §5): one small compiled function per kind for its
+geometry (penetration D, its rate, the gap and the gap's rate when apart) and one for its
+forces (on the load, the moment on the fence, N and the dissipated powers of §11).
+
+Contact slots of the cycle: corner-fence j -> j (0-3), corner-rail j -> 4 + j, tip-edge -> 8.
+A slot is APART (no penetration or out of its span), PUSH (penetrating, N > 0: it carries
+force) or CLIPPED (penetrating with the Kelvin force <= 0: N = 0, MODEL.md §4).
+"""
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+from ..contact import coulomb, kelvin_force
+
+APART, PUSH, CLIPPED = 0, 1, 2
+N_SLOTS = 9
+RAIL0 = 4
+TIP = 8
+
+
+@njit(cache=True, inline="always")
+def next_code(cur, D, Dd, in_span, kc, cd, law, d_gap, d_force):
+    """The slot's code at penetration D and rate Dd, from its code `cur` (MODEL.md §4: PUSH
+    while the Kelvin force is > 0, CLIPPED while it is <= 0 with D > 0). An apart slot enters
+    at D > 0; a touching one leaves only at D < -d_gap, and switches between PUSH and CLIPPED
+    only when the force is beyond +-d_force (numerics.CONTACT_HYSTERESIS): rounding noise
+    at a contact resting at zero depth or zero force is not an event."""
+    if not in_span:
+        return APART
+    if cur == APART:
+        if D <= 0.0:
+            return APART
+        return PUSH if kelvin_force(D, Dd, kc, cd, law)[0] > 0.0 else CLIPPED
+    if D < -d_gap:
+        return APART
+    n = kelvin_force(max(D, 0.0), Dd, kc, cd, law)[0]
+    if cur == PUSH:
+        return CLIPPED if n < -d_force else PUSH
+    return PUSH if n > d_force else CLIPPED
+
+
+# ---------------- corner-fence (MODEL.md §5.1) ----------------
+
+@njit(cache=True, inline="always")
+def corner_fence_geometry(gx, gy, gvx, gvy, ca, sa, dal, sg):
+    """s = G.d along the fence, D = -sigma h (h = G.n), D' = -sigma (v_G.n - alpha' s)."""
+    s = gx * ca + gy * sa
+    h = -gx * sa + gy * ca
+    return s, -sg * h, -sg * ((-gvx * sa + gvy * ca) - dal * s)
+
+
+@njit(cache=True, inline="always")
+def corner_fence_force(rx, ry, gvx, gvy, s, D, Dd, sg, ca, sa, kc, cd, law, mu2, eps, push):
+    """One corner on the fence: force sigma N n + friction along d on the load, its torque
+    about the centroid, the moment -sigma N s on the fence, N, (N - N_el) D' and the friction
+    power. Not pushing (CLIPPED): N = 0 and only -N_el D' is dissipated (§11)."""
+    n, n_el = kelvin_force(max(D, 0.0), Dd, kc, cd, law)
+    n = max(n, 0.0) if push else 0.0
+    wsl = gvx * ca + gvy * sa  # slip along the fence
+    f = coulomb(n, wsl, mu2, eps)
+    cfx = -sg * n * sa + f * ca
+    cfy = sg * n * ca + f * sa
+    return cfx, cfy, rx * cfy - ry * cfx, -sg * n * s, n, (n - n_el) * Dd, -f * wsl
+
+
+# ---------------- corner-rail (MODEL.md §5.3) ----------------
+
+@njit(cache=True, inline="always")
+def corner_rail_force(rx, ry, gvx, gvy, gy, kc, cd, law, mu2, eps, push):
+    """One corner on the rail (x_G <= 0, y_G < 0): D = -y_G, D' = -y_G'; force (friction, N)
+    on the load, its torque, N, (N - N_el) D' and the friction power."""
+    D = max(-gy, 0.0)
+    Dd = -gvy
+    n, n_el = kelvin_force(D, Dd, kc, cd, law)
+    n = max(n, 0.0) if push else 0.0
+    f = coulomb(n, gvx, mu2, eps)
+    return f, n, rx * n - ry * f, n, (n - n_el) * Dd, -f * gvx
+
+
+# ---------------- tip-edge (MODEL.md §5.2) ----------------
+
+@njit(cache=True, inline="always")
+def tip_local(tx, ty, x, yy, cphi, sphi):
+    """The fence tip T = (tx, ty) in the load's frame, and T - centroid in the world frame."""
+    dx = tx - x
+    dyy = ty - yy
+    return cphi * dx + sphi * dyy, -sphi * dx + cphi * dyy, dx, dyy
+
+
+@njit(cache=True)
+def tip_edge_choice(x, yy, cphi, sphi, tlx, tly, hl, hw):
+    """Edge pushed by the tip, by a separating-axis test of the segment O-T against the load:
+    the axis of smaller overlap, its edge nearest T. 0: x' = +L/2, 1: -L/2, 2: y' = +A/2, 3: -A/2."""
+    olx = -(cphi * x + sphi * yy)  # the pivot in the load frame
+    oly = sphi * x - cphi * yy
+    ovx = min(hl, max(olx, tlx)) - max(-hl, min(olx, tlx))
+    ovy = min(hw, max(oly, tly)) - max(-hw, min(oly, tly))
+    if ovx < ovy:
+        return 0 if tlx >= 0.0 else 1
+    return 2 if tly >= 0.0 else 3
+
+
+@njit(cache=True, inline="always")
+def tip_edge_normal(edge, tlx, tly, hl, hw, cphi, sphi):
+    """Depth D of T below the edge and the edge's outward normal n_e in the world frame."""
+    if edge == 0:
+        return hl - tlx, cphi, sphi
+    if edge == 1:
+        return hl + tlx, -cphi, -sphi
+    if edge == 2:
+        return hw - tly, -sphi, cphi
+    return hw + tly, sphi, -cphi
+
+
+@njit(cache=True, inline="always")
+def tip_edge_force(D, nex, ney, tx, ty, dx, dyy, vx, vy, om, dal, kc, cd, law, mu2, eps, push):
+    """The tip pushing an edge: force -N n_e + friction along the edge on the load, its torque,
+    the reaction's moment on the fence at T (friction included), N, (N - N_el) D', friction
+    power. D' from the tip's velocity relative to the load's material point under it."""
+    rvx = -dal * ty - (vx - om * dyy)
+    rvy = dal * tx - (vy + om * dx)
+    Dd = -(rvx * nex + rvy * ney)
+    n, n_el = kelvin_force(max(D, 0.0), Dd, kc, cd, law)
+    n = max(n, 0.0) if push else 0.0
+    tex = -ney
+    tey = nex
+    wl = -(rvx * tex + rvy * tey)  # slip of the load point along the edge
+    f = coulomb(n, wl, mu2, eps)
+    cfx = -n * nex + f * tex
+    cfy = -n * ney + f * tey
+    return cfx, cfy, dx * cfy - dyy * cfx, ty * cfx - tx * cfy, n, (n - n_el) * Dd, -f * wl, Dd
+
+
+@njit(cache=True, inline="always")
+def tip_gap(tlx, tly, tlx_d, tly_d, hl, hw):
+    """Signed box distance of T from the load (< 0 inside) and its rate, for the graze check."""
+    gx = abs(tlx) - hl
+    gy = abs(tly) - hw
+    if gx >= gy:
+        return gx, (tlx_d if tlx >= 0.0 else -tlx_d)
+    return gy, (tly_d if tly >= 0.0 else -tly_d)
