@@ -515,7 +515,7 @@ def run_sweep(spec: S.Spec | str | Path, out: str | Path | None = None, jobs: in
             if not resume or old.name != work.name:
                 log(f"removing {old} ({'--no-resume' if not resume else 'chunks of another spec or engine'})")
                 shutil.rmtree(old) if old.is_dir() else old.unlink()
-    fresh = not root.exists()
+    made = not work.exists()
     work.mkdir(parents=True, exist_ok=True)
     for tmp in work.glob(".fencesweep-tmp-*"):  # left by a worker killed while writing
         tmp.unlink(missing_ok=True)
@@ -528,9 +528,11 @@ def run_sweep(spec: S.Spec | str | Path, out: str | Path | None = None, jobs: in
                 plan, timings["load"] = _plan_while_loading(spec, progress, work, simulate)
             else:
                 plan = make_plan(spec, progress=progress, params_dir=work)
-        except BaseException:
-            if fresh:
-                shutil.rmtree(root, ignore_errors=True)
+        except BaseException:  # a bad spec (or Ctrl-C): nothing of this planning is worth keeping
+            if made:
+                shutil.rmtree(work, ignore_errors=True)
+                with contextlib.suppress(OSError):
+                    root.rmdir()
             raise
         timings["plan"] = time.perf_counter() - t
         for line in describe_plan(plan, out)[1:]:
