@@ -39,7 +39,7 @@ from .contacts import (APART, N_SLOTS, PUSH, RAIL0, TIP, next_code, corner_fence
 from .load import corner_motion, initial_state, outcome_margin
 
 N_STATE = 13
-N_CTRL = 8  # components under error control
+N_CTRL = 8  # components that events and peaks read from the dense output (the energies are not)
 # integer work vector
 IW_CODE = 4  # 4 .. 12: slot codes
 IW_EDGE = 13
@@ -432,7 +432,7 @@ def _quantity_at(ctx, theta):
 
 
 @njit(cache=True)
-def track_maxima(t, h, theta_end, y0, Q, p, iw, tmp, aux, dy, q0, q1, qa, qb, qs, acc, rising):
+def track_maxima(t, h, theta_end, y0, Q, p, iw, tmp, aux, dy, q0, q1, qa, qb, qs, acc, rising, Ks, ys, atol):
     """Running maxima of the tracked quantities over the step [t, t + theta_end h]: the end
     samples, and an interior maximum (the quantity rising at the start and falling at the
     end, judged on the dense output) located by golden-section search (MODEL.md §9).
@@ -451,7 +451,14 @@ def track_maxima(t, h, theta_end, y0, Q, p, iw, tmp, aux, dy, q0, q1, qa, qb, qs
         if rising[k] != 0.0 and qb[k] > q1[k] and max(qb[k], q1[k], q0[k]) >= NU.PEAK_CANDIDATE * m:
             th, qm = I.golden_max(_quantity_at, (t, h, y0, Q, p, iw, tmp, aux, dy, qs, k),
                                   0.0, theta_end, NU.PEAK_TOL)
-            m = max(m, qm)
+            # the value at the peak from a step of the method to it, not from the dense output
+            # (whose error is not controlled): one extra step per located peak
+            for i in range(N_STATE):
+                tmp[i] = y0[i]
+            rhs(t, tmp, p, iw, Ks[0], aux)
+            I.take_step(int(p[Lp.METHOD]), rhs, t, tmp, th * h, p, iw, Ks, dy, ys, aux, atol, p[Lp.TOL], N_CTRL)
+            quantities(t + th * h, ys, p, iw, aux, dy, qs)
+            m = max(m, qs[k])
         acc[A_QMAX + k] = m
         rising[k] = 1.0 if q1[k] > qb[k] else 0.0
     rising[N_Q] = 0.0
@@ -610,6 +617,9 @@ def start(p, y, iw, acc, atol):
     speed = p[Lp.V] + p[Lp.FL] * p[Lp.DAW_MAX]
     for i, sc in enumerate((p[Lp.FL], p[Lp.FL], 1.0, speed, speed, speed / p[Lp.FL], 1.0, speed / p[Lp.FL])):
         atol[i] = tol * sc
+    e_scale = p[Lp.I2] * (speed / p[Lp.FL]) ** 2  # energies: the fence's kinetic energy scale
+    for i in range(N_CTRL, N_STATE):
+        atol[i] = tol * e_scale
 
 
 @njit(cache=True)
@@ -657,7 +667,7 @@ def cycle_kernel(p, out, traj):
     r1 = np.empty(N_SLOTS)
     qv = np.zeros((5, N_Q))  # q0, q1, qa, qb, scratch
     acc = np.empty(N_ACC)
-    atol = np.empty(N_CTRL)
+    atol = np.empty(N_STATE)
     start(p, y, iw, acc, atol)
     tags1 = np.zeros(N_SLOTS, np.int64)
     iw[IW_EDGE] = classify(0.0, y, p, iw, codes1, g0, r0, tags1)
@@ -669,7 +679,10 @@ def cycle_kernel(p, out, traj):
         acc[A_QMAX + k] = qv[0, k]
     row = record(traj, 0, 0.0, y, p, iw, aux)
     rising = np.ones(N_Q + 1)  # per quantity: rising at the step's start; last: judge it anew
-    row = run(p, y, y1, tmp, dy, K, Q, aux, iw, codes1, tags1, g0, r0, g1, r1, qv, acc, atol, rising, traj, row)
+    Ks = np.empty((I.N_STAGES, n))  # a step to a located peak
+    ys = np.empty(n)
+    row = run(p, y, y1, tmp, dy, K, Q, aux, iw, codes1, tags1, g0, r0, g1, r1, qv, acc, atol, rising, Ks, ys,
+              traj, row)
     finish(p, y, iw, acc, out)
     return row
 
@@ -684,7 +697,8 @@ def fence_free_of_load(iw):
 
 
 @njit(cache=True)
-def run(p, y, y1, tmp, dy, K, Q, aux, iw, codes1, tags1, g0, r0, g1, r1, qv, acc, atol, rising, traj, row):
+def run(p, y, y1, tmp, dy, K, Q, aux, iw, codes1, tags1, g0, r0, g1, r1, qv, acc, atol, rising, Ks, ys, traj,
+        row):
     """The step loop of the cycle (module docstring). Returns the trajectory row count."""
     method = int(p[Lp.METHOD])
     tol = p[Lp.TOL]
@@ -709,7 +723,7 @@ def run(p, y, y1, tmp, dy, K, Q, aux, iw, codes1, tags1, g0, r0, g1, r1, qv, acc
         hits_tc = t < tc and t + h >= tc
         if hits_tc:
             h = tc - t
-        err = I.take_step(method, rhs, t, y, h, p, iw, K, tmp, y1, aux, atol, tol, N_CTRL)
+        err = I.take_step(method, rhs, t, y, h, p, iw, K, tmp, y1, aux, atol, tol, N_STATE)
         if not (err <= 1.0):  # rejected (a NaN error too)
             h = I.next_step(h, err, NU.SAFETY, NU.FAC_MIN, 1.0) if err == err else NU.FAC_MIN * h
             acc[A_REJECTS] += 1.0
@@ -732,7 +746,8 @@ def run(p, y, y1, tmp, dy, K, Q, aux, iw, codes1, tags1, g0, r0, g1, r1, qv, acc
             quantities_from_aux(t1, y1, p, iw, aux, qv[1])  # aux of the FSAL stage f(t1, y1)
         else:
             quantities(t1, y1, p, iw, aux, dy, qv[1])
-        track_maxima(t, h, theta, y, Q, p, iw, tmp, aux, dy, qv[0], qv[1], qv[2], qv[3], qv[4], acc, rising)
+        track_maxima(t, h, theta, y, Q, p, iw, tmp, aux, dy, qv[0], qv[1], qv[2], qv[3], qv[4], acc, rising,
+                     Ks, ys, atol)
         if acc[A_EXITED] == 0.0:
             acc[A_STAGE + stage_of(iw)] += t1 - t
         h_next = I.next_step(h, err, NU.SAFETY, NU.FAC_MIN, NU.FAC_MAX)
@@ -746,6 +761,7 @@ def run(p, y, y1, tmp, dy, K, Q, aux, iw, codes1, tags1, g0, r0, g1, r1, qv, acc
         else:
             for i in range(N_STATE):
                 K[0, i] = K[6, i]  # first same as last
+            rhs(t1, y1, p, iw, K[6], aux)  # aux at (t1, y1) again: track_maxima used it
         quantities_from_aux(t1, y1, p, iw, aux, qv[0])
         for k in range(N_Q):
             acc[A_QMAX + k] = max(acc[A_QMAX + k], qv[0, k])
