@@ -91,8 +91,6 @@ def add_grid_parser(sub) -> argparse.ArgumentParser:
 
 
 def cmd_grid(args: argparse.Namespace) -> int:
-    import joblib
-
     if args.out is not None and not args.out.endswith(".parquet"):
         raise UsageError(f"--out {args.out!r} must end with .parquet")
     if args.jobs is not None and args.jobs < 1:
@@ -104,11 +102,10 @@ def cmd_grid(args: argparse.Namespace) -> int:
     say = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
     spec = S.load(args.spec)
     out = Path(args.out) if args.out else sweep.default_output(spec)
-    jobs = args.jobs or joblib.cpu_count()
     if args.dry_run:
-        return _dry_run(spec, out, jobs, args)
+        return _dry_run(spec, out, args)
     try:
-        res = sweep.run_sweep(spec, out, jobs=jobs, resume=not args.no_resume, backend=args.backend,
+        res = sweep.run_sweep(spec, out, jobs=args.jobs, resume=not args.no_resume, backend=args.backend,
                               scheduler=args.scheduler, progress=not args.quiet, log=say)
     except KeyboardInterrupt:
         work, saved, total = sweep.saved_chunks(spec, out)
@@ -124,7 +121,10 @@ def cmd_grid(args: argparse.Namespace) -> int:
     return 0
 
 
-def _dry_run(spec: S.Spec, out: Path, jobs: int, args: argparse.Namespace) -> int:
+def _dry_run(spec: S.Spec, out: Path, args: argparse.Namespace) -> int:
+    import joblib
+
+    jobs = args.jobs or joblib.cpu_count()
     plan = sweep.make_plan(spec, progress=not args.quiet)
     work = sweep.work_root(out) / plan.salt[:16]
     if plan.chunk_size is None and not args.no_resume:
