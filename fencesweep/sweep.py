@@ -418,40 +418,21 @@ def _plan_while_loading(spec: S.Spec, progress: bool, params_dir: Path, simulate
         return planned.result(), loaded
 
 
-def _sample_runs(plan: Plan, simulate: Callable | None, budget: float, most: int) -> list:
-    """(model run, seconds) of runs spread evenly over the sweep (after warm_up), within `budget` s."""
+def time_sample(plan: Plan, simulate: Callable | None = None, budget: float = 2.0, most: int = 64) -> tuple:
+    """Seconds per model run, timed on runs spread evenly over the sweep (after warm_up)."""
     fn = simulate or _engine()
     ids = np.unique(np.linspace(0, plan.n_models - 1, min(most, plan.n_models)).round().astype(int))
-    samples = []
-    t_end = time.perf_counter() + budget
+    t0 = time.perf_counter()
+    k = 0
     for m in ids:
-        t0 = time.perf_counter()
         try:
             fn(plan.model_vals(int(m)), trajectory=False)
         except Exception:  # timed all the same; the sweep records it as a failed row
             pass
-        samples.append((int(m), time.perf_counter() - t0))
-        if time.perf_counter() > t_end:
+        k += 1
+        if time.perf_counter() - t0 > budget:
             break
-    return samples
-
-
-def time_sample(plan: Plan, simulate: Callable | None = None, budget: float = 2.0, most: int = 64) -> tuple:
-    """Seconds per model run, timed on runs spread evenly over the sweep (after warm_up), and how many."""
-    samples = _sample_runs(plan, simulate, budget, most)
-    return sum(t for _, t in samples) / len(samples), len(samples)
-
-
-def costliest_first(plan: Plan, chunks: list, samples: list) -> list:
-    """`chunks` in dispatch order: the costliest first, by the per-run seconds of a timed sample
-    interpolated along the runs. The last chunks handed out are then the cheapest, so the
-    workers finish closer together. (The table does not depend on the order.)"""
-    if len(samples) < 2 or len(chunks) < 2:
-        return list(chunks)
-    ms, secs = np.array(sorted(samples)).T
-    spans = [plan.chunk_models(c) for c in chunks]
-    cost = np.interp([(r.start + r.stop - 1) / 2 for r in spans], ms, secs) * [len(r) for r in spans]
-    return [chunks[i] for i in np.argsort(-cost, kind="stable")]
+    return (time.perf_counter() - t0) / k, k
 
 
 PLAN_FILE = "plan.json"
@@ -557,13 +538,13 @@ def run_sweep(spec: S.Spec | str | Path, out: str | Path | None = None, jobs: in
         for line in describe_plan(plan, out)[1:]:
             if "note:" in line or "skipped" in line:
                 log(line.strip())
-    samples = None
+    per_run = None
     if plan.chunk_size is None:
         plan.chunk_size = recorded_chunk_size(work)
     if plan.chunk_size is None:  # first run: size the chunks from a short timed sample
         timings["warm_up"] = warm_up(plan, simulate)
-        samples = _sample_runs(plan, simulate, budget=0.5, most=8)
-        plan.chunk_size = auto_chunk_size(plan.n_models, sum(t for _, t in samples) / len(samples))
+        per_run, _ = time_sample(plan, simulate, budget=0.5, most=8)
+        plan.chunk_size = auto_chunk_size(plan.n_models, per_run)
     state = {"spec": spec.normalized(), "spec_hash": spec.hash, "salt": plan.salt, "chunk_size": plan.chunk_size,
              "n_chunks": plan.n_chunks}
     with store.atomic_path(work / PLAN_FILE) as tmp:
@@ -575,11 +556,9 @@ def run_sweep(spec: S.Spec | str | Path, out: str | Path | None = None, jobs: in
         log(f"resuming: {len(done)} of {plan.n_chunks} chunks already in {work}")
     meta_chunk = {"salt": plan.salt}
     if pending:
-        if samples is None:
+        if per_run is None:
             timings["warm_up"] = warm_up(plan, simulate)
-            samples = _sample_runs(plan, simulate, budget=0.3, most=8)
-        per_run = sum(t for _, t in samples) / len(samples)
-        pending = costliest_first(plan, pending, samples)
+            per_run, _ = time_sample(plan, simulate, budget=0.3, most=8)
         if local:
             work_left = per_run * sum(len(plan.chunk_models(c)) for c in pending)
             if jobs > 1 and local_jobs(jobs, work_left, serial_below) == 1:

@@ -214,17 +214,6 @@ def test_model_key_digest_does_not_depend_on_string_identity():
     assert digest(("cycle", ("B2", 72.0))) != digest(("cycle", ("B2", 72.5)))
 
 
-def test_costliest_chunks_are_dispatched_first():
-    plan = sweep.make_plan(spec())  # 22 runs in chunks of 4: 0-3, ..., 16-19, 20-21
-    samples = [(0, 1e-3), (10, 1e-3), (21, 5e-3)]  # runs get dearer towards the end
-    order = sweep.costliest_first(plan, list(range(plan.n_chunks)), samples)
-    assert sorted(order) == list(range(plan.n_chunks))
-    # per run 1 ms up to run 10, then rising to 5 ms: chunk 4 (runs 16-19) costs ~15 ms, chunk 5
-    # (2 runs near 5 ms) ~9.6 ms, chunk 3 ~9.1 ms, chunks 0-2 4 ms each (kept in their order)
-    assert order == [4, 5, 3, 0, 1, 2]
-    assert sweep.costliest_first(plan, [2, 0, 1], []) == [2, 0, 1]  # no sample: as given
-
-
 def test_spec_error_in_planning_leaves_no_work_directory(tmp_path):
     text = """
         grid: {dP: [0, 0.5, 0.7]}
