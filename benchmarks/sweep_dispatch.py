@@ -1,12 +1,14 @@
-"""What a sweep chunk costs besides its model runs: joblib dispatch and the chunk's file.
+"""What a sweep chunk costs besides its model runs: dispatch to a worker and the chunk's file.
 
-For chunk sizes of 1..1024 runs it times, on the loky backend with --jobs workers:
-  dispatch: the round trip of a task that carries a chunk's resolved parameter sets and
-            returns its result rows but runs nothing (pickling, queueing, unpickling);
-  write:    store.write_chunk of those rows (temporary file, fsync, rename);
-and compares them with the chunk's compute time at the engine's measured ms per cycle.
+For chunk sizes of 1..4096 runs it times, on the sweep's own local pool (sweep.START_METHOD:
+forked workers on Linux, loky elsewhere) with --jobs workers:
+  dispatch: the round trip of a task like the sweep's, which carries the chunk's scene
+            numbers and returns a small tuple, but runs nothing (pickling, queueing);
+  write:    store.write_chunk of the chunk's result rows (temporary file, rename);
+and compares them with the chunk's compute time at the engine's measured ms per run.
 The sweep's chunk rule (sweep.auto_chunk_size: about CHUNK_SECONDS = 1 s of work a chunk,
-sized from a timed sample) keeps that overhead well under a percent. Prints a table and writes it to benchmarks/sweep_dispatch_SCENE.txt.
+sized from a timed sample) keeps that overhead well under a percent. Prints a table and
+writes it to benchmarks/sweep_dispatch_SCENE.txt.
 
     python benchmarks/sweep_dispatch.py [--jobs 2] [--scene cycle|impact]
 """
@@ -17,14 +19,15 @@ import tempfile
 import time
 from pathlib import Path
 
-import joblib
+import numpy as np
 
 from fencesweep import api, store, sweep
 from fencesweep import params as P
 
 
-def _noop(c, scene, ids, vals_list, rows):
-    return c, ids, rows
+def _noop(c, ids, rows, path, meta, shared=None):
+    """The shape of sweep._run_chunk's call and answer, without running or writing anything."""
+    return c, None, (0, 0.0, 0.0, 0.0)
 
 
 def main() -> None:
@@ -42,23 +45,26 @@ def main() -> None:
         res, _ = api.simulate_resolved(vals)
     per_run = (time.perf_counter() - t0) / n
 
-    lines = [f"engine: {per_run * 1e3:.3f} ms per {args.scene} run (small_far, defaults); loky, {args.jobs} jobs",
+    lines = [f"engine: {per_run * 1e3:.3f} ms per {args.scene} run (small_far, defaults); "
+             f"{sweep.START_METHOD} workers, {args.jobs} jobs",
              f"{'runs/chunk':>10} {'dispatch ms':>12} {'write ms':>9} {'compute ms':>11} {'overhead %':>11}"]
-    with joblib.Parallel(n_jobs=args.jobs, return_as="generator_unordered", batch_size=1,
-                         pre_dispatch="2*n_jobs") as par, tempfile.TemporaryDirectory() as tmp:
-        list(par(joblib.delayed(_noop)(c, args.scene, [c], [vals], [res]) for c in range(20)))  # start workers
+    with sweep._pool(args.jobs, None, sweep.START_METHOD) as pool, tempfile.TemporaryDirectory() as tmp:
+        for _ in sweep._completed(pool, ((_noop, c, range(1), np.arange(1), None, {}) for c in range(20)),
+                                  ahead=2 * args.jobs):
+            pass  # the workers are up
         for size in (1, 8, 32, 64, 128, 512, 1024, 4096):
-            ids = list(range(size))
-            payload, rows = [vals] * size, [res] * size
+            ids, rows = range(size), np.arange(size, dtype=np.int64)
+            results = [res] * size
             tasks = max(20, args.tasks * 32 // max(size, 32))
             t0 = time.perf_counter()
-            for _ in par(joblib.delayed(_noop)(c, args.scene, ids, payload, rows) for c in range(tasks)):
+            calls = ((_noop, c, ids, rows, f"{tmp}/c.parquet", {"chunk": c}) for c in range(tasks))
+            for _ in sweep._completed(pool, calls, ahead=2 * args.jobs):
                 pass
             dispatch = (time.perf_counter() - t0) / tasks * args.jobs  # per task, per worker
             t0 = time.perf_counter()
             k = 10
             for c in range(k):
-                store.write_chunk(Path(tmp) / f"c{c}.parquet", args.scene, ids, rows, {"chunk": c})
+                store.write_chunk(Path(tmp) / f"c{c}.parquet", args.scene, list(ids), results, {"chunk": c})
             write = (time.perf_counter() - t0) / k
             compute = per_run * size
             over = 100 * (dispatch + write) / compute

@@ -1,17 +1,31 @@
-"""Throughput of the main job: cycles per second for sweeps/b2k2.yaml (issue 4).
+"""Throughput of the main job: cycles per second for sweeps/b2k2.yaml on 1 and 2 jobs.
 
-Runs `fencesweep grid sweeps/b2k2.yaml --no-resume` in a fresh process on 1 and 2 jobs,
-cold (Numba cache removed first, so the JIT compile is included) and warm (cache on disk),
-and records wall time, cycles per second and the peak resident memory of the whole process
-tree (sampled every 50 ms).
+Runs the whole command `fencesweep grid sweeps/b2k2.yaml --no-resume` in a fresh process on
+1 and 2 jobs, side by side (1, 2, 1, 2, ... `--repeat` times; medians reported), with a warm
+Numba cache, and once each cold (cache removed first, so the JIT compile is included). For
+each run it records the wall time, cycles per second, the CPU seconds of the process tree,
+its peak resident memory (sampled every 0.5 s), the CPU that *other* processes used on the
+machine meanwhile (from /proc/stat; a run waits first until the machine is quiet), and
+where the time went (`Outcome.timings` of fencesweep.sweep.run_sweep: planning, kernel
+load, compute with the workers' run and write seconds, assembly).
 
-    python benchmarks/throughput.py [--spec sweeps/b2k2.yaml]
+`--orchestration-of REV` also measures, in the same run and interleaved, the same package
+with the orchestration files (ORCHESTRATION) of git revision REV: the same kernel, the
+sweep machinery before and after. `--tree DIR` measures the package in DIR (a checkout or
+an exported snapshot) instead of this checkout.
 
-writes results/throughput.md and results/throughput.csv.
+    python benchmarks/throughput.py [--spec sweeps/b2k2.yaml] [--repeat 3] [--orchestration-of REV] [--no-cold]
+
+writes results/throughput.md and results/throughput.csv. Run it alone on the machine.
 """
 from __future__ import annotations
 
 import argparse
+import json
+import os
+import resource
+import shutil
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -22,64 +36,198 @@ import pandas as pd
 import psutil
 
 ROOT = Path(__file__).resolve().parents[1]
+SAMPLE_EVERY = 0.5  # seconds between memory samples
+ORCHESTRATION = ("fencesweep/sweep.py", "fencesweep/spec.py", "fencesweep/store.py", "fencesweep/cli.py",
+                 "fencesweep/errors.py")
+
+#: the CLI, run as `python -c DRIVER grid ...`: exactly `fencesweep grid ...`, plus the import
+#: time and run_sweep's Outcome (seconds, timings) written as JSON to $FENCESWEEP_BENCH_OUT
+DRIVER = """
+import json, os, sys, time
+t0 = time.perf_counter()
+from fencesweep import cli, sweep
+imports = time.perf_counter() - t0
+real = sweep.run_sweep
+def run_sweep(*a, **k):
+    res = real(*a, **k)
+    with open(os.environ["FENCESWEEP_BENCH_OUT"], "w") as f:
+        json.dump({"imports": imports, "seconds": res.seconds, "timings": getattr(res, "timings", {})}, f)
+    return res
+sweep.run_sweep = run_sweep
+sys.exit(cli.main(sys.argv[1:]))
+"""
 
 
-def clear_cache() -> int:
+def clear_cache(tree: Path) -> int:
     n = 0
     for pattern in ("*.nbi", "*.nbc"):
-        for f in (ROOT / "fencesweep").rglob(pattern):
+        for f in (tree / "fencesweep").rglob(pattern):
             f.unlink()
             n += 1
     return n
 
 
-def run(spec: str, jobs: int, out: Path) -> dict:
-    cmd = [sys.executable, "-m", "fencesweep.cli", "grid", spec, "--jobs", str(jobs), "--no-resume",
+def busy_jiffies() -> int:
+    """CPU time (clock ticks) spent by everything on the machine so far."""
+    with open("/proc/stat") as f:
+        fields = [int(x) for x in f.readline().split()[1:]]
+    return sum(fields) - fields[3] - fields[4]  # all but idle and iowait
+
+
+def wait_quiet(most: float = 60.0, below: float = 0.15) -> float:
+    """Wait (at most `most` s) until other processes use under `below` cores; return that load."""
+    tick = os.sysconf("SC_CLK_TCK")
+    t_end = time.monotonic() + most
+    while True:
+        b0, t0 = busy_jiffies(), time.monotonic()
+        time.sleep(1.0)
+        load = (busy_jiffies() - b0) / tick / (time.monotonic() - t0)
+        if load < below or time.monotonic() > t_end:
+            return load
+
+
+def run(tree: Path, spec: str, jobs: int, out: Path) -> dict:
+    bench_out = out.with_suffix(".json")
+    bench_out.unlink(missing_ok=True)
+    cmd = [sys.executable, "-c", DRIVER, "grid", spec, "--jobs", str(jobs), "--no-resume", "--quiet",
            "--out", str(out)]
-    t0 = time.perf_counter()
-    proc = psutil.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    peak = 0
-    while proc.poll() is None:
-        try:
-            procs = [proc] + proc.children(recursive=True)
-            peak = max(peak, sum(p.memory_info().rss for p in procs if p.is_running()))
-        except psutil.Error:
-            pass
-        time.sleep(0.05)
-    wall = time.perf_counter() - t0
-    _, err = proc.communicate()
+    env = dict(os.environ, FENCESWEEP_BENCH_OUT=str(bench_out), PYTHONPATH=str(tree))
+    tick = os.sysconf("SC_CLK_TCK")
+    log = out.with_suffix(".log")
+    with open(log, "w") as sink:
+        ru0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+        b0 = busy_jiffies()
+        t0 = time.perf_counter()
+        proc = psutil.Popen(cmd, cwd=tree, env=env, stdout=sink, stderr=subprocess.STDOUT)
+        peak = 0
+        while True:  # the memory of the process tree, sampled twice a second (a sample costs ~1 ms of CPU)
+            try:
+                proc.wait(timeout=SAMPLE_EVERY)
+                break
+            except psutil.TimeoutExpired:
+                pass
+            try:
+                procs = [proc] + proc.children(recursive=True)
+                peak = max(peak, sum(p.memory_info().rss for p in procs if p.is_running()))
+            except psutil.Error:
+                pass
+        wall = time.perf_counter() - t0
+        busy = (busy_jiffies() - b0) / tick
     if proc.returncode != 0:
-        raise RuntimeError(f"{' '.join(cmd)} failed:\n{err}")
+        raise RuntimeError(f"{' '.join(cmd)} failed:\n{log.read_text()}")
+    ru1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (ru1.ru_utime - ru0.ru_utime) + (ru1.ru_stime - ru0.ru_stime)
     rows = len(pd.read_parquet(out, columns=["outcome"]))
-    return {"jobs": jobs, "wall [s]": wall, "cycles": rows, "cycles/s": rows / wall, "peak RSS [MiB]": peak / 2**20}
+    inner = json.loads(bench_out.read_text())
+    row = {"jobs": jobs, "wall [s]": wall, "cycles": rows, "cycles/s": rows / wall, "CPU [s]": cpu,
+           "others [cores]": max(0.0, busy - cpu) / wall, "peak RSS [MiB]": peak / 2**20,
+           "imports": inner["imports"], "run_sweep": inner["seconds"],
+           "start+exit": wall - inner["imports"] - inner["seconds"]}
+    row.update(inner["timings"])
+    return row
+
+
+def with_orchestration_of(rev: str, tree: Path, where: Path) -> Path:
+    """A copy of `tree` (its package and the spec) whose ORCHESTRATION files are those of git revision `rev`."""
+    copy = where / f"orchestration-{rev}"
+    shutil.copytree(tree / "fencesweep", copy / "fencesweep", ignore=shutil.ignore_patterns("__pycache__"))
+    shutil.copytree(tree / "sweeps", copy / "sweeps")
+    for name in ORCHESTRATION:
+        text = subprocess.run(["git", "show", f"{rev}:{name}"], cwd=ROOT, capture_output=True, text=True)
+        target = copy / name
+        if text.returncode == 0:
+            target.write_text(text.stdout)
+        else:  # not in that revision
+            target.unlink(missing_ok=True)
+    return copy
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--spec", default="sweeps/b2k2.yaml")
+    ap.add_argument("--repeat", type=int, default=3, help="warm runs per tree and job count (median)")
+    ap.add_argument("--orchestration-of", metavar="REV",
+                    help="also measure this package with the orchestration files of git revision REV")
+    ap.add_argument("--tree", metavar="DIR", type=Path, default=ROOT, help="the package to measure")
+    ap.add_argument("--no-cold", action="store_true", help="skip the cold-cache runs")
     args = ap.parse_args()
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
-        for jobs in (1, 2):
-            clear_cache()
-            rows.append({"start": "cold", **run(args.spec, jobs, Path(tmp) / f"cold{jobs}.parquet")})
-            print(rows[-1], flush=True)
-            rows.append({"start": "warm", **run(args.spec, jobs, Path(tmp) / f"warm{jobs}.parquet")})
-            print(rows[-1], flush=True)
+        tree = args.tree.resolve()
+        head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True,
+                              text=True).stdout.strip()
+        trees = {"this package": tree}
+        if args.orchestration_of:
+            rev = subprocess.run(["git", "rev-parse", "--short", args.orchestration_of], cwd=ROOT, check=True,
+                                 capture_output=True, text=True).stdout.strip()
+            trees[f"orchestration of {rev}"] = with_orchestration_of(rev, tree, Path(tmp))
+
+        def measure(label, tree, start, jobs):
+            load = wait_quiet()
+            r = {"code": label, "start": start, "quiet before": load,
+                 **run(tree, args.spec, jobs, Path(tmp) / f"out{jobs}.parquet")}
+            rows.append(r)
+            print({k: round(v, 3) if isinstance(v, float) else v for k, v in r.items()}, flush=True)
+
+        for label, tree in trees.items():
+            if not args.no_cold:
+                for jobs in (1, 2):
+                    clear_cache(tree)
+                    measure(label, tree, "cold", jobs)
+            else:  # compile once, unmeasured
+                run(tree, args.spec, 1, Path(tmp) / "compile.parquet")
+        for _ in range(args.repeat):
+            for label, tree in trees.items():
+                for jobs in (1, 2):
+                    measure(label, tree, "warm", jobs)
     df = pd.DataFrame(rows)
     out = ROOT / "results"
     out.mkdir(exist_ok=True)
-    df.to_csv(out / "throughput.csv", index=False)
+    df.to_csv(out / "throughput.csv", index=False, float_format="%.4g")
+    write_md(df, args, head, out / "throughput.md")
+
+
+def write_md(df: pd.DataFrame, args, head: str, path: Path) -> None:
+    def med(g, col):
+        return statistics.median(g[col]) if col in g and g[col].notna().any() else float("nan")
+
     lines = ["# Throughput of the main job", "",
-             f"Regenerate: `python benchmarks/throughput.py` (spec `{args.spec}`, the whole command "
-             "`fencesweep grid` in a fresh process: start-up, planning, compile or cache load, the "
-             "sweep, writing the table). Cold: the Numba cache removed first. Machine: "
-             f"{psutil.cpu_count()} logical CPUs.", "",
-             "| start | jobs | cycles | wall [s] | cycles/s | peak RSS [MiB] |", "|---|---|---|---|---|---|"]
-    for r in rows:
-        lines.append(f"| {r['start']} | {r['jobs']} | {r['cycles']} | {r['wall [s]']:.1f} | "
-                     f"{r['cycles/s']:.0f} | {r['peak RSS [MiB]']:.0f} |")
-    (out / "throughput.md").write_text("\n".join(lines) + "\n")
+             f"Regenerate: `python benchmarks/throughput.py"
+             f"{f' --orchestration-of {args.orchestration_of}' if args.orchestration_of else ''}` "
+             f"(measured at commit {head}: *this package* is its `fencesweep`; spec `{args.spec}`; the whole "
+             "command `fencesweep grid` in a fresh process: start-up, "
+             "planning, kernel load, the sweep, writing the table). Cold: the Numba cache removed first "
+             f"(one run). Warm: median of {args.repeat} runs, 1 and 2 jobs interleaved. Machine: "
+             f"{psutil.cpu_count()} logical CPUs; *others*: cores used by other processes during the run "
+             "(measured; each run waits for a quiet machine first).", "",
+             "| code | start | jobs | cycles | wall [s] | cycles/s | 2 jobs / 1 job | CPU [s] | others [cores] "
+             "| peak RSS [MiB] |", "|---|---|---|---|---|---|---|---|---|---|"]
+    for (code, start), g in df.groupby(["code", "start"], sort=False):
+        base = None
+        for jobs, h in g.groupby("jobs"):
+            wall = med(h, "wall [s]")
+            base = wall if jobs == 1 else base
+            speedup = f"{base / wall:.2f}x" if jobs != 1 and base else ""
+            lines.append(f"| {code} | {start} | {jobs} | {int(h['cycles'].iloc[0])} | {wall:.2f} | "
+                         f"{h['cycles'].iloc[0] / wall:.0f} | {speedup} | {med(h, 'CPU [s]'):.1f} | "
+                         f"{med(h, 'others [cores]'):.2f} | {med(h, 'peak RSS [MiB]'):.0f} |")
+    phases = [("start+exit", "interpreter start and exit"), ("imports", "imports of the CLI"),
+              ("plan", "planning: every scene resolved and checked once (wall; forked: the kernel load beside it)"),
+              ("load", "  kernel load (Numba cache), forked runs: beside the planning"),
+              ("warm_up", "warm-up: one run of each variant (1 job: the kernel load)"),
+              ("compute", "chunks on the workers, wall"), ("runs", "  workers: scenes resolved and run (sum)"),
+              ("writes", "  workers: chunk files written (sum)"), ("tail", "  last worker done after the first"),
+              ("assemble", "assembly of the table")]
+    warm = df[df.start == "warm"]
+    lines += ["", "Where the time goes, warm (median seconds; the phases of `run_sweep` in `Outcome.timings`):",
+              "", "| phase | " + " | ".join(f"{c}, {j} job{'s' if j > 1 else ''}"
+                                             for (c, j), _ in warm.groupby(["code", "jobs"], sort=False)) + " |",
+              "|---|" + "---|" * warm.groupby(["code", "jobs"]).ngroups]
+    for col, what in phases:
+        cells = [f"{med(g, col):.3f}" if col in g and g[col].notna().any() else "-"
+                 for _, g in warm.groupby(["code", "jobs"], sort=False)]
+        lines.append(f"| {what} | " + " | ".join(cells) + " |")
+    path.write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
 
 
