@@ -70,7 +70,7 @@ def hertz_peak(m1: float, k1: float, v0: float) -> float:
 
 def hertz_contact_time(m1: float, k1: float, v0: float) -> float:
     """Undamped Hertz contact duration [s]: 3.2181 (m1^2 / (k1^2 v0))^0.2 (MODEL.md §7)."""
-    return 3.2181 * (m1**2 / (k1**2 * v0)) ** 0.2
+    return float(pulse_time(Lp.LAW_HERTZ, m1, k1, v0))
 
 
 @njit(cache=True)

@@ -8,7 +8,6 @@ force) or CLIPPED (penetrating with the Kelvin force <= 0: N = 0, MODEL.md §4).
 """
 from __future__ import annotations
 
-import math
 
 from numba import njit
 

@@ -49,7 +49,7 @@ IW_RIDE = 16
 N_IW = 17
 FM_KELVIN, FM_KINEMATIC, FM_FREE = 0, 1, 2
 # aux outputs of the right-hand side
-AX_NF, AX_NR, AX_TAU, AX_DMAX, N_AUX = 0, 1, 2, 3, 4
+AX_NF, AX_NR, AX_TAU, AX_DMAX, AX_FX, AX_FY, AX_TQ, AX_PDISS, AX_PFRIC, N_AUX = 0, 1, 2, 3, 4, 5, 6, 7, 8, 9
 # tracked maxima (MODEL.md §11)
 Q_NF, Q_NR, Q_DEFL, Q_ALPHA, N_Q = 0, 1, 2, 3, 4
 # trajectory columns
@@ -76,15 +76,29 @@ def fence_state(t, y, p, mode):
 # ---------------------------------------------------------------- right-hand side
 
 @njit(cache=True, inline="always")
+def add_contact(aux, ax_n, fx, fy, tq, tau, n, p_diss, p_fric, D):
+    """Add one contact's forces (contacts.py) to the sums in aux: on the load, the moment on the
+    fence, its normal force to the fence or rail sum, the dissipated powers, the penetration."""
+    aux[AX_FX] += fx
+    aux[AX_FY] += fy
+    aux[AX_TQ] += tq
+    aux[AX_TAU] += tau
+    aux[ax_n] += n
+    aux[AX_PDISS] += p_diss
+    aux[AX_PFRIC] += p_fric
+    aux[AX_DMAX] = max(aux[AX_DMAX], D)
+
+
+@njit(cache=True, inline="always")
 def contact_sum(y, p, iw, ca, sa, dal, aux):
-    """Sum of the forces of every slot that is not APART (MODEL.md §5): on the load
-    (fx, fy, torque), the moment tau on the fence, and the dissipated powers; N sums in aux."""
+    """Sum into aux the forces of every slot that is not APART (MODEL.md §5): on the load
+    (AX_FX, AX_FY, AX_TQ), the moment on the fence (AX_TAU), the normal-force sums and the
+    dissipated powers."""
     kc, cd, law, mu2, eps = p[Lp.KC], p[Lp.CD], p[Lp.LAW], p[Lp.MU2], p[Lp.EPSV]
     cphi = math.cos(y[2])
     sphi = math.sin(y[2])
     hl = 0.5 * p[Lp.LL]
     hw = 0.5 * p[Lp.AA]
-    fx = fy = tq = tau = p_diss = p_fric = 0.0
     for j in range(4):
         cf = iw[IW_CODE + j]
         cr = iw[IW_CODE + RAIL0 + j]
@@ -95,23 +109,10 @@ def contact_sum(y, p, iw, ca, sa, dal, aux):
             s, D, Dd = corner_fence_geometry(gx, gy, gvx, gvy, ca, sa, dal, iw[j])
             a, b, c, d, n, pd, pf = corner_fence_force(rx, ry, gvx, gvy, s, D, Dd, iw[j], ca, sa,
                                                        kc, cd, law, mu2, eps, cf == PUSH)
-            fx += a
-            fy += b
-            tq += c
-            tau += d
-            aux[AX_NF] += n
-            p_diss += pd
-            p_fric += pf
-            aux[AX_DMAX] = max(aux[AX_DMAX], D)
+            add_contact(aux, AX_NF, a, b, c, d, n, pd, pf, D)
         if cr != APART:
             a, b, c, n, pd, pf = corner_rail_force(rx, ry, gvx, gvy, gy, kc, cd, law, mu2, eps, cr == PUSH)
-            fx += a
-            fy += b
-            tq += c
-            aux[AX_NR] += n
-            p_diss += pd
-            p_fric += pf
-            aux[AX_DMAX] = max(aux[AX_DMAX], -gy)
+            add_contact(aux, AX_NR, a, b, c, 0.0, n, pd, pf, -gy)
     ct = iw[IW_CODE + TIP]
     if ct != APART:
         fl = p[Lp.FL]
@@ -121,15 +122,7 @@ def contact_sum(y, p, iw, ca, sa, dal, aux):
         D, nex, ney = tip_edge_normal(iw[IW_EDGE], tlx, tly, hl, hw, cphi, sphi)
         a, b, c, d, n, pd, pf, Dd = tip_edge_force(D, nex, ney, tx, ty, dx, dyy, y[3], y[4], y[5], dal,
                                                    kc, cd, law, mu2, eps, ct == PUSH)
-        fx += a
-        fy += b
-        tq += c
-        tau += d
-        aux[AX_NF] += n
-        p_diss += pd
-        p_fric += pf
-        aux[AX_DMAX] = max(aux[AX_DMAX], D)
-    return fx, fy, tq, tau, p_diss, p_fric
+        add_contact(aux, AX_NF, a, b, c, d, n, pd, pf, D)
 
 
 @njit(cache=True, inline="always")
@@ -145,15 +138,14 @@ def load_rhs(y, p, iw, ca, sa, dal, dy, aux):
         return 0.0
     vx, vy, om = y[3], y[4], y[5]
     bx, by, bt = belt_friction(vx - p[Lp.V], vy, om, p[Lp.FMAX], p[Lp.MMAX], p[Lp.RHO], p[Lp.EPSV])
-    fx, fy, tq, tau, p_diss, p_fric = contact_sum(y, p, iw, ca, sa, dal, aux)
-    dy[3] = (fx + bx) / p[Lp.M1]
-    dy[4] = (fy + by) / p[Lp.M1]
-    dy[5] = (tq + bt) / p[Lp.I1]
-    dy[9] = p_diss
+    contact_sum(y, p, iw, ca, sa, dal, aux)
+    dy[3] = (aux[AX_FX] + bx) / p[Lp.M1]
+    dy[4] = (aux[AX_FY] + by) / p[Lp.M1]
+    dy[5] = (aux[AX_TQ] + bt) / p[Lp.I1]
+    dy[9] = aux[AX_PDISS]
     dy[11] = bx * vx + by * vy + bt * om
-    dy[12] = p_fric
-    aux[AX_TAU] = tau
-    return tau
+    dy[12] = aux[AX_PFRIC]
+    return aux[AX_TAU]
 
 
 @njit(cache=True)
@@ -641,13 +633,6 @@ def after_step(t1, y1, p, iw, kind, codes1, edge1, acc):
 
 
 @njit(cache=True)
-def end_of_load(t, y, p, iw, acc):
-    """t reached t_max with the load on the belt (MODEL.md §9: timeout). Before t_c the load is
-    dropped and the fence runs on alone to t_c (its results are over [0, max(t_exit, t_c)])."""
-    drop_load(t, y, p, iw, acc, Rs.TIMEOUT)
-
-
-@njit(cache=True)
 def cycle_kernel(p, out, traj):
     """Simulate one work cycle; write CYCLE_RESULTS into out and the time series into traj
     (rows of TRAJ_COLUMNS, as many as fit). Returns the number of rows the run produced."""
@@ -681,8 +666,9 @@ def cycle_kernel(p, out, traj):
     rising = np.ones(N_Q + 1)  # per quantity: rising at the step's start; last: judge it anew
     Ks = np.empty((I.N_STAGES, n))  # a step to a located peak
     ys = np.empty(n)
-    row = run(p, y, y1, tmp, dy, K, Q, aux, iw, codes1, tags1, g0, r0, g1, r1, qv, acc, atol, rising, Ks, ys,
-              traj, row)
+    auxs = np.zeros(N_AUX)  # the peak search's own: aux keeps f(t1, y1)'s forces
+    row = run(p, y, y1, tmp, dy, K, Q, aux, auxs, iw, codes1, tags1, g0, r0, g1, r1, qv, acc, atol, rising, Ks,
+              ys, traj, row)
     finish(p, y, iw, acc, out)
     return row
 
@@ -697,8 +683,8 @@ def fence_free_of_load(iw):
 
 
 @njit(cache=True)
-def run(p, y, y1, tmp, dy, K, Q, aux, iw, codes1, tags1, g0, r0, g1, r1, qv, acc, atol, rising, Ks, ys, traj,
-        row):
+def run(p, y, y1, tmp, dy, K, Q, aux, auxs, iw, codes1, tags1, g0, r0, g1, r1, qv, acc, atol, rising, Ks, ys,
+        traj, row):
     """The step loop of the cycle (module docstring). Returns the trajectory row count."""
     method = int(p[Lp.METHOD])
     tol = p[Lp.TOL]
@@ -710,7 +696,9 @@ def run(p, y, y1, tmp, dy, K, Q, aux, iw, codes1, tags1, g0, r0, g1, r1, qv, acc
         t_end = tc if acc[A_EXITED] != 0.0 else p[Lp.TMAX]
         if t >= t_end - 1e-12 * max(1.0, t_end):
             if acc[A_EXITED] == 0.0 and t < tc:
-                end_of_load(t, y, p, iw, acc)
+                # t_max before t_c (MODEL.md §9 timeout): the load leaves, the fence runs on
+                # alone to t_c (its results are over [0, max(t_exit, t_c)])
+                drop_load(t, y, p, iw, acc, Rs.TIMEOUT)
                 rhs(t, y, p, iw, K[0], aux)
                 continue
             break
@@ -746,7 +734,7 @@ def run(p, y, y1, tmp, dy, K, Q, aux, iw, codes1, tags1, g0, r0, g1, r1, qv, acc
             quantities_from_aux(t1, y1, p, iw, aux, qv[1])  # aux of the FSAL stage f(t1, y1)
         else:
             quantities(t1, y1, p, iw, aux, dy, qv[1])
-        track_maxima(t, h, theta, y, Q, p, iw, tmp, aux, dy, qv[0], qv[1], qv[2], qv[3], qv[4], acc, rising,
+        track_maxima(t, h, theta, y, Q, p, iw, tmp, auxs, dy, qv[0], qv[1], qv[2], qv[3], qv[4], acc, rising,
                      Ks, ys, atol)
         if acc[A_EXITED] == 0.0:
             acc[A_STAGE + stage_of(iw)] += t1 - t
@@ -761,7 +749,6 @@ def run(p, y, y1, tmp, dy, K, Q, aux, iw, codes1, tags1, g0, r0, g1, r1, qv, acc
         else:
             for i in range(N_STATE):
                 K[0, i] = K[6, i]  # first same as last
-            rhs(t1, y1, p, iw, K[6], aux)  # aux at (t1, y1) again: track_maxima used it
         quantities_from_aux(t1, y1, p, iw, aux, qv[0])
         for k in range(N_Q):
             acc[A_QMAX + k] = max(acc[A_QMAX + k], qv[0, k])
@@ -790,8 +777,6 @@ def finish(p, y, iw, acc, out):
     """The results of MODEL.md §11 from the run's accumulators."""
     if acc[A_STATUS] != Rs.ST_OK:
         acc[A_OUTCOME] = Rs.FAILED
-        if math.isnan(acc[A_T_EXIT]):
-            acc[A_T_EXIT] = math.nan
     if acc[A_EXITED] == 0.0 and acc[A_STATUS] == Rs.ST_OK:
         drop_load(p[Lp.TMAX], y, p, iw, acc, Rs.TIMEOUT)
     if math.isnan(acc[A_E_CONTACT]):
