@@ -489,6 +489,61 @@ class Outcome:
     timings: dict = field(default_factory=dict)
 
 
+def _open_work(root: Path, work: Path, resume: bool, log: Callable[[str], None]) -> bool:
+    """Make the sweep's work directory: remove other specs' (or, without resume, all) chunks
+    and the temporary files of a worker killed while writing. Returns whether it was new."""
+    if root.exists():
+        for old in root.iterdir():
+            if not resume or old.name != work.name:
+                log(f"removing {old} ({'--no-resume' if not resume else 'chunks of another spec or engine'})")
+                shutil.rmtree(old) if old.is_dir() else old.unlink()
+    made = not work.exists()
+    work.mkdir(parents=True, exist_ok=True)
+    for tmp in work.glob(".fencesweep-tmp-*"):  # left by a worker killed while writing
+        tmp.unlink(missing_ok=True)
+    return made
+
+
+def _compute(plan: Plan, spec: S.Spec, work: Path, pending: list, done: list, jobs: int, local: bool,
+             scheduler: str | None, progress: bool, simulate: Callable | None, meta_chunk: dict) -> list:
+    """Run the pending chunks (in this process, a local pool, or Dask) with a progress bar;
+    every chunk is written as it completes. Returns the workers' timing records."""
+    rows_of = plan.chunk_rows()
+    shared = (spec, simulate)
+
+    def calls(write: bool, with_shared: bool):
+        for c in pending:
+            ids = plan.chunk_models(c)
+            yield (_run_chunk, c, ids, plan.first_row[ids.start:ids.stop],
+                   str(work / plan.chunk_name(c)) if write else None, dict(meta_chunk, chunk=c),
+                   shared if with_shared else None)
+
+    stats = []
+    with contextlib.ExitStack() as stack:
+        if not local:
+            import joblib
+
+            stack.enter_context(_dask(scheduler))
+            results = joblib.Parallel(n_jobs=-1, return_as="generator_unordered", batch_size=1,
+                                      pre_dispatch="2*n_jobs")(
+                joblib.delayed(fn)(*args) for fn, *args in calls(False, True))
+        elif jobs == 1:
+            results = (fn(*args) for fn, *args in calls(True, True))
+        else:
+            pool = stack.enter_context(_pool(jobs, shared, START_METHOD))
+            results = _completed(pool, calls(True, False), ahead=2 * jobs)  # forks before the bar's thread
+        bar = stack.enter_context(contextlib.closing(_bar(
+            plan.n_scenes - plan.skipped, Path(spec.path).stem if spec.path else "sweep", progress,
+            initial=int(rows_of[done].sum()) if done else 0)))
+        for c, rows, stat in results:
+            if rows is not None:  # Dask: the client writes
+                store.write_chunk(work / plan.chunk_name(c), spec.scene, list(plan.chunk_models(c)), rows,
+                                  dict(meta_chunk, chunk=c))
+            stats.append(stat)
+            bar.update(int(rows_of[c]))
+    return stats
+
+
 def run_sweep(spec: S.Spec | str | Path, out: str | Path | None = None, jobs: int | None = None,
               resume: bool = True, backend: str = "loky", scheduler: str | None = None,
               progress: bool = False, simulate: Callable | None = None, plan: Plan | None = None,
@@ -510,15 +565,7 @@ def run_sweep(spec: S.Spec | str | Path, out: str | Path | None = None, jobs: in
     local = backend == "loky"
     root = work_root(out)
     work = root / (plan.salt if plan is not None else plan_salt(spec))[:16]
-    if root.exists():
-        for old in root.iterdir():
-            if not resume or old.name != work.name:
-                log(f"removing {old} ({'--no-resume' if not resume else 'chunks of another spec or engine'})")
-                shutil.rmtree(old) if old.is_dir() else old.unlink()
-    made = not work.exists()
-    work.mkdir(parents=True, exist_ok=True)
-    for tmp in work.glob(".fencesweep-tmp-*"):  # left by a worker killed while writing
-        tmp.unlink(missing_ok=True)
+    made = _open_work(root, work, resume, log)
     timings = {}
     forking = local and jobs > 1 and START_METHOD == "fork"
     if plan is None:
@@ -549,7 +596,6 @@ def run_sweep(spec: S.Spec | str | Path, out: str | Path | None = None, jobs: in
              "n_chunks": plan.n_chunks}
     with store.atomic_path(work / PLAN_FILE) as tmp:
         tmp.write_text(json.dumps(state, indent=1))
-    rows_of = plan.chunk_rows()
     done = chunks_done(plan, work)
     pending = sorted(set(range(plan.n_chunks)) - set(done))
     if done:
@@ -564,39 +610,8 @@ def run_sweep(spec: S.Spec | str | Path, out: str | Path | None = None, jobs: in
             if jobs > 1 and local_jobs(jobs, work_left, serial_below) == 1:
                 log(f"about {work_left:.1f} s of work: running in this process (starting workers costs more)")
                 jobs = 1
-        shared = (spec, simulate)
-
-        def calls(write: bool, with_shared: bool):
-            for c in pending:
-                ids = plan.chunk_models(c)
-                yield (_run_chunk, c, ids, plan.first_row[ids.start:ids.stop],
-                       str(work / plan.chunk_name(c)) if write else None, dict(meta_chunk, chunk=c),
-                       shared if with_shared else None)
-
-        stats = []
         t = time.perf_counter()
-        with contextlib.ExitStack() as stack:
-            if not local:
-                import joblib
-
-                stack.enter_context(_dask(scheduler))
-                results = joblib.Parallel(n_jobs=-1, return_as="generator_unordered", batch_size=1,
-                                          pre_dispatch="2*n_jobs")(
-                    joblib.delayed(fn)(*args) for fn, *args in calls(False, True))
-            elif jobs == 1:
-                results = (fn(*args) for fn, *args in calls(True, True))
-            else:
-                pool = stack.enter_context(_pool(jobs, shared, START_METHOD))
-                results = _completed(pool, calls(True, False), ahead=2 * jobs)  # forks before the bar's thread
-            bar = stack.enter_context(contextlib.closing(_bar(
-                plan.n_scenes - plan.skipped, Path(spec.path).stem if spec.path else "sweep", progress,
-                initial=int(rows_of[done].sum()) if done else 0)))
-            for c, rows, stat in results:
-                if rows is not None:  # Dask: the client writes
-                    store.write_chunk(work / plan.chunk_name(c), spec.scene, list(plan.chunk_models(c)), rows,
-                                      dict(meta_chunk, chunk=c))
-                stats.append(stat)
-                bar.update(int(rows_of[c]))
+        stats = _compute(plan, spec, work, pending, done, jobs, local, scheduler, progress, simulate, meta_chunk)
         timings["compute"] = time.perf_counter() - t
         timings.update(_worker_timings(stats))
     t = time.perf_counter()
