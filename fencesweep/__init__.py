@@ -1,4 +1,11 @@
 """fencesweep: Numba-accelerated sweeps of an active rotary fence (MODEL.md)."""
+from importlib import metadata as _metadata
+
+try:  # the version lives in one place, pyproject.toml; the installed metadata carries it
+    __version__ = _metadata.version("fencesweep")
+except _metadata.PackageNotFoundError:  # a source tree on sys.path, never installed
+    __version__ = "0+unknown"
+
 from ._cache import invalidate_stale_kernels
 
 invalidate_stale_kernels()  # before any kernel module is imported
@@ -6,5 +13,4 @@ invalidate_stale_kernels()  # before any kernel module is imported
 from .params import CASES, ParameterError, resolve
 from .api import simulate, simulate_resolved
 
-__version__ = "0.1.0"
 __all__ = ["simulate", "simulate_resolved", "resolve", "CASES", "ParameterError", "__version__"]

@@ -13,6 +13,7 @@ import math
 import sys
 from pathlib import Path
 
+from . import __version__
 from . import params as P
 from . import spec as S
 from . import sweep
@@ -166,6 +167,7 @@ def _human(seconds: float) -> str:
 
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="fencesweep", description="Active rotary fence: one cycle, or sweeps of many.")
+    ap.add_argument("--version", action="version", version=f"fencesweep {__version__}")
     sub = ap.add_subparsers(dest="command", required=True)
 
     run = sub.add_parser("run", help="simulate one scene and print its results")

@@ -53,3 +53,24 @@ def test_console_script_runs_as_a_user_would():
     r = subprocess.run([sys.executable, "-m", "fencesweep.cli", "run", "--set", "e=2"],
                        capture_output=True, text=True)
     assert r.returncode == 2 and "e = 2.0 is out of range" in r.stderr
+
+
+def test_version_is_the_installed_metadata(capsys):
+    from importlib import metadata
+
+    import fencesweep
+    from fencesweep import store
+
+    version = metadata.version("fencesweep")  # pyproject.toml's, the one place it is written
+    with pytest.raises(SystemExit) as done:
+        main(["--version"])
+    assert done.value.code == 0
+    assert capsys.readouterr().out == f"fencesweep {version}\n"
+    assert fencesweep.__version__ == version == store.versions()["fencesweep"]
+
+
+def test_python_dash_m_fencesweep():
+    r = subprocess.run([sys.executable, "-m", "fencesweep", "--version"], capture_output=True, text=True)
+    assert r.returncode == 0 and r.stdout.startswith("fencesweep ")
+    r = subprocess.run([sys.executable, "-m", "fencesweep", "run", "--set", "e=2"], capture_output=True, text=True)
+    assert r.returncode == 2 and "e = 2.0 is out of range" in r.stderr and "Traceback" not in r.stderr
