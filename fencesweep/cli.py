@@ -40,6 +40,16 @@ def _fmt(value) -> str:
     return str(value)
 
 
+def _json_value(value):
+    """A result as JSON: an undefined number (NaN, e.g. t_first_contact of a run without
+    contact) and an infinite one, which JSON cannot hold, become null; numpy scalars plain."""
+    if hasattr(value, "item"):
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
 def cmd_run(args: argparse.Namespace) -> int:
     from . import api
     from .results import SCENE_RESULTS, UNITS
@@ -58,7 +68,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
         write_trajectory(traj, args.trajectory, vals, res)
     if args.json:
-        print(json.dumps(res, default=float))
+        print(json.dumps({k: _json_value(v) for k, v in res.items()}, allow_nan=False))
     else:
         width = max(len(n) for n, _, _ in SCENE_RESULTS[args.scene])
         head = f"scene {args.scene}" + (f", case {args.case}" if args.case else "")
@@ -175,7 +185,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--case", default=None, choices=tuple(P.CASES))
     run.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                      help="override a parameter of MODEL.md §12 (repeatable)")
-    run.add_argument("--json", action="store_true", help="print one JSON object")
+    run.add_argument("--json", action="store_true", help="print one JSON object (an undefined result, e.g. t_first_contact without contact, is null)")
     run.add_argument("--trajectory", metavar="PATH.parquet", help="write the time series for plotting")
     run.set_defaults(func=cmd_run)
 

@@ -74,3 +74,22 @@ def test_python_dash_m_fencesweep():
     assert r.returncode == 0 and r.stdout.startswith("fencesweep ")
     r = subprocess.run([sys.executable, "-m", "fencesweep", "run", "--set", "e=2"], capture_output=True, text=True)
     assert r.returncode == 2 and "e = 2.0 is out of range" in r.stderr and "Traceback" not in r.stderr
+
+
+def _strict_json(text: str):
+    """json.loads that refuses NaN and Infinity, as a JSON parser of another language does."""
+    def refuse(constant):
+        raise ValueError(f"{constant} is not JSON")
+
+    return json.loads(text, parse_constant=refuse)
+
+
+def test_run_json_undefined_values_are_null(capsys):
+    # the load starts 20 m upstream: no contact before t_max, so t_first_contact is undefined
+    assert main(["run", "--set", "R_s=-20", "--set", "t_max=1.36", "--json"]) == 0
+    out = capsys.readouterr().out
+    res = _strict_json(out)
+    assert res["outcome"] == "timeout" and res["t_first_contact"] is None
+    assert "NaN" not in out and res["peak_force"] == 0.0 and res["n_impacts"] == 0
+    assert main(["run", "--case", "small_far", "--json"]) == 0  # a run with contact: a number
+    assert isinstance(_strict_json(capsys.readouterr().out)["t_first_contact"], float)
