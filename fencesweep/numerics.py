@@ -14,9 +14,12 @@ INTEGRATORS = ("dopri5", "rk4")
 #: 4th-order solutions below TOL relative to the state (rtol) and to the scene's scales (atol:
 #: TOL x fence length for positions, x 1 rad for angles, x the fastest drive-or-belt speed
 #: for velocities). Chosen as the loosest power of ten at which the widened validation set
-#: (benchmarks/validation_scenes.yaml) stays within 1e-4 of the reference in peak_force,
-#: deflection_max and t_exit (results/work_precision.md, rows "dopri5 step_factor=...").
-TOL = 1e-7
+#: (benchmarks/validation_scenes.yaml, tests/test_validation.py) stays within 1e-4 of the
+#: reference in peak_force, deflection_max and t_exit: measured at 1e-7, 1e-6 and 1e-5, the
+#: scenes missed are the same one at 1e-7 and 1e-6 (graze_tip_clip, see KNOWN_MISSES there)
+#: and eleven at 1e-5 (a load resting on a free fence chatters: 3 impacts, 1e-3 errors).
+#: The named cases are then ~1e-6 from the reference (benchmarks/tolerance_scan.py).
+TOL = 1e-6
 
 #: Tolerance of the one-pulse scenes (`impact`, `freefall`, and the free-fall force that every
 #: overload is divided by) at step_factor = 1: a pulse costs ~50 steps even this tight, so
