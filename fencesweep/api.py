@@ -55,6 +55,9 @@ def simulate_resolved(vals: dict, trajectory: bool = False):
         if rows > traj.shape[0]:  # the buffer was too short: run again with the count it needed
             traj = np.empty((rows, len(TRAJ_COLUMNS)))
             rows = cycle_kernel(p, out, traj)
+            if rows > traj.shape[0]:  # a trajectory is never silently short
+                raise RuntimeError(f"the cycle kernel produced {rows} trajectory rows when rerun with the "
+                                   f"{traj.shape[0]} its first run needed: it is not deterministic")
         import pandas as pd
 
         df = pd.DataFrame(traj[:rows], columns=list(TRAJ_COLUMNS))

@@ -1,0 +1,48 @@
+"""The Python API around the kernels: the trajectory buffer is grown, never cut short."""
+import numpy as np
+import pandas as pd
+import pytest
+
+from fencesweep import api, resolve
+from fencesweep.scenes import cycle
+
+
+def test_kernel_reports_the_rows_a_short_buffer_could_not_hold():
+    from fencesweep.results import N_CYCLE_RESULTS
+    from fencesweep.setup import prepare
+
+    p = prepare(resolve("cycle", "small_far"))
+    out = np.empty(N_CYCLE_RESULTS)
+    full = np.empty((100_000, len(cycle.TRAJ_COLUMNS)))
+    needed = cycle.cycle_kernel(p, out, full)
+    short = np.full((8, len(cycle.TRAJ_COLUMNS)), -7.0)
+    assert needed > 8
+    assert cycle.cycle_kernel(p, out, short) == needed  # counts past the capacity ...
+    np.testing.assert_array_equal(short, full[:8])  # ... and fills what fits
+
+
+def test_short_trajectory_buffer_is_grown_not_cut(monkeypatch):
+    vals = resolve("cycle", "long_near")
+    monkeypatch.setattr(api, "TRAJECTORY_ROWS", 100_000)
+    res_big, big = api.simulate_resolved(vals, trajectory=True)
+    monkeypatch.setattr(api, "TRAJECTORY_ROWS", 8)
+    res, traj = api.simulate_resolved(vals, trajectory=True)
+    assert len(big) > 8 and len(traj) == len(big)
+    pd.testing.assert_frame_equal(traj, big)
+    assert res == res_big  # long_near touches the fence: no NaN among its results
+    assert traj.t.iloc[-1] >= min(res["t_exit"], vals["t_c"])  # the series reaches the end of the run
+
+
+def test_a_kernel_that_needs_more_rows_on_its_rerun_is_an_error(monkeypatch):
+    real = cycle.cycle_kernel
+    calls = []
+
+    def growing(p, out, traj):  # a kernel whose second run needs more rows than its first
+        calls.append(traj.shape[0])
+        return real(p, out, traj) + len(calls)
+
+    monkeypatch.setattr(cycle, "cycle_kernel", growing)
+    monkeypatch.setattr(api, "TRAJECTORY_ROWS", 8)
+    with pytest.raises(RuntimeError, match="not deterministic"):
+        api.simulate_resolved(resolve("cycle", "small_far"), trajectory=True)
+    assert len(calls) == 2
