@@ -93,6 +93,8 @@ def add_grid_parser(sub) -> argparse.ArgumentParser:
     g.add_argument("--dry-run", action="store_true",
                    help="print the scene count, model runs and an estimated time; run nothing else")
     g.add_argument("--no-resume", action="store_true", help="discard chunks of an interrupted run")
+    g.add_argument("--overwrite", action="store_true",
+                   help="replace a table (or discard the unfinished run) that another spec left at the output")
     g.add_argument("--backend", choices=("loky", "dask"), default="loky",
                    help="loky: processes on this machine; dask: a Dask cluster (needs --scheduler)")
     g.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler, e.g. tcp://HOST:8786")
@@ -117,7 +119,7 @@ def cmd_grid(args: argparse.Namespace) -> int:
         return _dry_run(spec, out, args)
     try:
         res = sweep.run_sweep(spec, out, jobs=args.jobs, resume=not args.no_resume, backend=args.backend,
-                              scheduler=args.scheduler, progress=not args.quiet, log=say)
+                              scheduler=args.scheduler, progress=not args.quiet, log=say, overwrite=args.overwrite)
     except KeyboardInterrupt:
         work, saved, total = sweep.saved_chunks(spec, out)
         print(f"fencesweep: interrupted; {saved}{f' of {total}' if total else ''} chunks are saved in {work}; "
@@ -152,6 +154,11 @@ def _dry_run(spec: S.Spec, out: Path, args: argparse.Namespace) -> int:
         plan.chunk_size = sweep.auto_chunk_size(plan.n_models, per_run)
         lines = sweep.describe_plan(plan, out)
     print("\n".join(lines))
+    if not args.overwrite:
+        try:
+            sweep.check_output(spec, out)
+        except UsageError as exc:
+            print(f"  note: a real run would stop before it starts: {exc}")
     done = [] if args.no_resume else sweep.chunks_done(plan, work)
     n_pending = plan.n_models - sum(len(plan.chunk_models(c)) for c in done)
     if done:

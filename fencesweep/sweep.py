@@ -489,6 +489,46 @@ class Outcome:
     timings: dict = field(default_factory=dict)
 
 
+def _spec_label(path: str | None, spec_hash: str) -> str:
+    """A spec as messages name it: its file (when known) and the start of its hash."""
+    return f"{path} (spec hash {spec_hash[:12]})" if path else f"a spec with hash {spec_hash[:12]}"
+
+
+def check_output(spec: S.Spec, out: Path) -> None:
+    """Refuse (UsageError, naming both specs) to destroy another spec's results at `out`: the
+    table there, or the saved chunks of its unfinished run in OUT.partial/. The same spec's
+    table is replaced by a rerun and its chunks are resumed; chunks of the same spec from
+    another engine can never be reused and are removed."""
+    this = _spec_label(spec.path, spec.hash)
+    if out.exists():
+        try:
+            meta = store.read_metadata(out)
+        except (OSError, ValueError):  # not Parquet (pyarrow.ArrowInvalid is a ValueError)
+            meta = {}
+        if not isinstance(meta.get("spec_hash"), str):
+            raise UsageError(f"{out} exists and is not a table written by fencesweep grid; not replacing it "
+                             f"with the results of {this}: choose another --out, or add --overwrite to "
+                             f"replace it")
+        if meta["spec_hash"] != spec.hash:
+            that = _spec_label(meta.get("spec_path"), meta["spec_hash"])
+            raise UsageError(f"{out} holds the results of another spec, {that}; this is {this}. Not replacing "
+                             f"it: choose another --out, or add --overwrite to replace it")
+    root = work_root(out)
+    for work in sorted(root.iterdir()) if root.is_dir() else ():
+        try:
+            state = json.loads((work / PLAN_FILE).read_text())
+        except (OSError, ValueError):  # planning never finished there: no chunk was saved
+            continue
+        saved = len(list(work.glob("chunk-*.parquet")))
+        other = state.get("spec_hash")
+        if saved and isinstance(other, str) and other != spec.hash:
+            that = _spec_label(state.get("spec_path"), other)
+            raise UsageError(f"{root} holds the unfinished run of another spec, {that} ({saved} of "
+                             f"{state.get('n_chunks', '?')} chunks saved); this is {this}. Not discarding it: "
+                             f"finish that run first (the same command with its spec), choose another --out, "
+                             f"or add --overwrite to discard it")
+
+
 def _open_work(root: Path, work: Path, resume: bool, log: Callable[[str], None]) -> bool:
     """Make the sweep's work directory: remove other specs' (or, without resume, all) chunks
     and the temporary files of a worker killed while writing. Returns whether it was new."""
@@ -547,17 +587,22 @@ def _compute(plan: Plan, spec: S.Spec, work: Path, pending: list, done: list, jo
 def run_sweep(spec: S.Spec | str | Path, out: str | Path | None = None, jobs: int | None = None,
               resume: bool = True, backend: str = "loky", scheduler: str | None = None,
               progress: bool = False, simulate: Callable | None = None, plan: Plan | None = None,
-              log: Callable[[str], None] | None = None, serial_below: float | None = None) -> Outcome:
+              log: Callable[[str], None] | None = None, serial_below: float | None = None,
+              overwrite: bool = False) -> Outcome:
     """Run a sweep and write its table. `simulate(vals, trajectory=False) -> (results, None)`
     defaults to fencesweep.api.simulate_resolved (tests pass a fake). A local sweep whose
     remaining work is estimated below `serial_below` seconds (default SERIAL_BELOW) runs
     in this process: starting workers would cost more than it saves. `log` receives the
-    notes a user should see (skipped scenes, unused axes, resuming)."""
+    notes a user should see (skipped scenes, unused axes, resuming). Without `overwrite`,
+    another spec's table or unfinished run at `out` stops the sweep before it starts
+    (check_output)."""
     t0 = time.perf_counter()
     log = log or (lambda msg: None)
     if not isinstance(spec, S.Spec):
         spec = S.load(spec)
     out = Path(out) if out is not None else default_output(spec)
+    if not overwrite:
+        check_output(spec, out)
     if jobs is None:
         import joblib
 
@@ -592,8 +637,8 @@ def run_sweep(spec: S.Spec | str | Path, out: str | Path | None = None, jobs: in
         timings["warm_up"] = warm_up(plan, simulate)
         per_run, _ = time_sample(plan, simulate, budget=0.5, most=8)
         plan.chunk_size = auto_chunk_size(plan.n_models, per_run)
-    state = {"spec": spec.normalized(), "spec_hash": spec.hash, "salt": plan.salt, "chunk_size": plan.chunk_size,
-             "n_chunks": plan.n_chunks}
+    state = {"spec": spec.normalized(), "spec_hash": spec.hash, "spec_path": spec.path, "salt": plan.salt,
+             "chunk_size": plan.chunk_size, "n_chunks": plan.n_chunks}
     with store.atomic_path(work / PLAN_FILE) as tmp:
         tmp.write_text(json.dumps(state, indent=1))
     done = chunks_done(plan, work)
@@ -636,7 +681,7 @@ def _worker_timings(stats: list) -> dict:
 
 def table_meta(plan: Plan) -> dict:
     spec = plan.spec
-    return {"spec": spec.normalized(), "spec_hash": spec.hash, "spec_source": spec.source,
+    return {"spec": spec.normalized(), "spec_hash": spec.hash, "spec_source": spec.source, "spec_path": spec.path,
             "versions": store.versions(), "scene": spec.scene,
             "counts": {"scenes": plan.n_scenes - plan.skipped, "skipped": plan.skipped,
                        "model_runs": plan.n_models}}

@@ -22,6 +22,7 @@ from fencesweep import api, cli, store, sweep
 from fencesweep import params as P
 from fencesweep import results as R
 from fencesweep import spec as S
+from fencesweep.errors import UsageError
 
 cloudpickle.register_pickle_by_value(sys.modules[__name__])
 
@@ -298,10 +299,14 @@ def test_no_resume_recomputes_everything(tmp_path, monkeypatch):
 
 
 def test_changed_spec_never_reuses_stale_chunks(tmp_path, monkeypatch):
-    interrupted_run(monkeypatch, tmp_path, 2)
+    saved = interrupted_run(monkeypatch, tmp_path, 2)
     changed = SPEC.replace("m1: 12.0", "m1: 13.0")
-    res = run(tmp_path, text=changed)
-    assert res.reused == 0
+    # another spec's unfinished run is not discarded unless asked (test_cli_grid_refuses_...)
+    with pytest.raises(UsageError, match=r"unfinished run of another spec.*\(2 of \d+ chunks saved\)"):
+        run(tmp_path, text=changed)
+    assert all(p.exists() for p in saved)
+    res = run(tmp_path, text=changed, overwrite=True)
+    assert res.reused == 0 and not any(p.exists() for p in saved)
     df = pd.read_parquet(res.out)
     assert (df.m1 == 13.0).all()
     expect, _ = fake_engine(spec(changed).resolve(0))
@@ -467,6 +472,38 @@ def test_cli_grid_dry_run_and_run(tmp_path, monkeypatch, capsys):
     other = tmp_path / "other.parquet"
     assert cli.main(["grid", str(path), "--jobs", "1", "--out", str(other)]) == 0
     assert "wrote" in capsys.readouterr().err and other.exists()
+
+
+def test_cli_grid_refuses_to_replace_another_specs_table(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(api, "simulate_resolved", fake_engine)
+    a, b, out = tmp_path / "A.yaml", tmp_path / "B.yaml", tmp_path / "T.parquet"
+    a.write_text(textwrap.dedent(SPEC))
+    b.write_text(textwrap.dedent(SPEC.replace("m1: 12.0", "m1: 13.0")))
+    assert cli.main(["grid", str(a), "--out", str(out), "--jobs", "1", "--quiet"]) == 0
+    written = out.read_bytes()
+    capsys.readouterr()
+    assert cli.main(["grid", str(b), "--out", str(out), "--jobs", "1", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert f"{out} holds the results of another spec, {a} (spec hash {spec().hash[:12]})" in err
+    assert f"this is {b}" in err and "--overwrite" in err and "Traceback" not in err
+    assert out.read_bytes() == written and not sweep.work_root(out).exists()  # nothing changed
+    # the dry run says so too, and the same spec may replace its own table
+    assert cli.main(["grid", str(b), "--out", str(out), "--dry-run"]) == 0
+    assert "a real run would stop before it starts" in capsys.readouterr().out
+    assert cli.main(["grid", str(a), "--out", str(out), "--jobs", "1", "--quiet"]) == 0
+    assert cli.main(["grid", str(b), "--out", str(out), "--jobs", "1", "--quiet", "--overwrite"]) == 0
+    assert (pd.read_parquet(out).m1 == 13.0).all()
+    assert store.read_metadata(out)["spec_path"] == str(b)
+
+
+def test_cli_grid_refuses_to_replace_a_file_it_did_not_write(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(api, "simulate_resolved", fake_engine)
+    path, out = tmp_path / "s.yaml", tmp_path / "mine.parquet"
+    path.write_text(textwrap.dedent(SPEC))
+    out.write_bytes(b"not a sweep table")
+    assert cli.main(["grid", str(path), "--out", str(out), "--jobs", "1", "--quiet"]) == 2
+    assert "is not a table written by fencesweep grid" in capsys.readouterr().err
+    assert out.read_bytes() == b"not a sweep table"
 
 
 def test_write_trajectory_round_trip(tmp_path):
