@@ -138,6 +138,12 @@ def _dry_run(spec: S.Spec, out: Path, args: argparse.Namespace) -> int:
     import joblib
 
     jobs = args.jobs or joblib.cpu_count()
+    problem = sweep.plan_size_problem(spec)
+    if problem:  # count only: planning would not fit in memory
+        print(f"{spec.path or 'spec'}: scene {spec.scene}, {spec.n_scenes} scenes ({spec.shape_text()}) -> {out}")
+        print("  distinct model runs: not counted (planning them would not fit in memory)")
+        print(f"  a real run would stop before it starts: {problem}")
+        return 0
     plan = sweep.make_plan(spec, progress=not args.quiet)
     work = sweep.work_root(out) / plan.salt[:16]
     if plan.chunk_size is None and not args.no_resume:

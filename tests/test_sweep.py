@@ -506,6 +506,61 @@ def test_cli_grid_refuses_to_replace_a_file_it_did_not_write(tmp_path, monkeypat
     assert out.read_bytes() == b"not a sweep table"
 
 
+HUGE = """
+    grid:
+      B2: {linspace: [1, 100, 100]}
+      K2: {linspace: [1, 1000, 100]}
+      m1: {linspace: [1, 30, 100]}
+      v: {linspace: [0.5, 3, 100]}
+      mu1: {linspace: [0.1, 0.8, 100]}
+"""
+
+
+def test_cli_grid_too_large_for_memory_counts_and_stops_before_it_starts(tmp_path, monkeypatch, capsys):
+    import tracemalloc
+
+    def never(*a, **k):
+        raise AssertionError("planned a spec too large to plan")
+
+    monkeypatch.setattr(sweep, "available_memory", lambda: 16 * 2**30)
+    monkeypatch.setattr(sweep, "make_plan", never)
+    path, out = tmp_path / "huge.yaml", tmp_path / "huge.parquet"
+    path.write_text(textwrap.dedent(HUGE))
+    tracemalloc.start()
+    try:
+        assert cli.main(["grid", str(path), "--out", str(out), "--dry-run"]) == 0
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    text = capsys.readouterr().out
+    assert peak < 20 * 2**20  # the 1e10 scenes are counted, not allocated
+    assert "10000000000 scenes (B2 100 x K2 100 x m1 100 x v 100 x mu1 100)" in text
+    assert "distinct model runs: not counted" in text
+    most = 16 * 2**30 // sweep.PLAN_BYTES_PER_SCENE
+    assert cli.main(["grid", str(path), "--out", str(out), "--jobs", "1"]) == 2
+    err = capsys.readouterr().err
+    for part in (f"{path} expands to 10000000000 scenes", "1,490.1 GiB of memory", "16.0 GiB available",
+                 f"at most {most} scenes", "one spec per value of grid.B2 gives 100 specs of 100000000 scenes"):
+        assert part in err
+    assert "Traceback" not in err and list(tmp_path.iterdir()) == [path]  # nothing made
+
+
+def test_plan_size_limit_follows_the_memory_available(tmp_path, monkeypatch):
+    sp = spec()  # 2 cases x 2 x 5 x 2 = 40 scenes
+    monkeypatch.setattr(sweep, "available_memory", lambda: 40 * sweep.PLAN_BYTES_PER_SCENE)
+    assert sweep.plan_size_problem(sp) is None and sweep.make_plan(sp).n_scenes == 40
+    monkeypatch.setattr(sweep, "available_memory", lambda: 39 * sweep.PLAN_BYTES_PER_SCENE)
+    msg = sweep.plan_size_problem(sp)
+    assert "at most 39 scenes" in msg and "one spec per value of cases gives 2 specs of 20 scenes" in msg
+    with pytest.raises(UsageError, match="expands to 40 scenes"):
+        sweep.make_plan(sp)
+    with pytest.raises(UsageError, match="expands to 40 scenes"):
+        run(tmp_path)
+    assert list(tmp_path.iterdir()) == []
+    monkeypatch.setattr(sweep, "available_memory", lambda: None)  # unknown: no limit
+    assert sweep.plan_size_problem(sp) is None
+
+
 def test_write_trajectory_round_trip(tmp_path):
     traj = pd.DataFrame({"t": np.linspace(0, 1, 5), "alpha": np.arange(5.0), "stage": np.int8([2, 1, 1, 3, 2])})
     traj.attrs["units"] = {"t": "s", "alpha": "rad"}
