@@ -308,12 +308,6 @@ def cell_edges(v: np.ndarray) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------- the report
-def _f(x, nd=3):
-    if x is None or (isinstance(x, float) and not math.isfinite(x)):
-        return "n/a"
-    return f"{x:.{nd}f}"
-
-
 def _interp_height(ff, peak):
     """Drop height whose free-fall peak equals `peak` (freefall_H table, monotone in H)."""
     d = ff.sort_values("H")

@@ -27,7 +27,6 @@ STATUS_MESSAGES = (
 
 # ---- stages (MODEL.md §10) ----
 STAGE_S1, STAGE_S2, STAGE_S3, STAGE_S4, STAGE_RAIL = 0, 1, 2, 3, 4
-STAGES = ("S1", "S2", "S3", "S4", "rail")
 
 # ---- result vector layout for the cycle scene (MODEL.md §11), name -> (index, unit, meaning) ----
 CYCLE_RESULTS = (

@@ -19,7 +19,7 @@ import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
 
 import numpy as np
 import yaml
@@ -268,11 +268,6 @@ class Spec:
         """Scene number -> the resolved parameter set of params.resolve (raises ParameterError)."""
         case, over = self.inputs(i)
         return resolve_inputs(self.scene, case, over)
-
-    def iter_resolved(self, start: int = 0, stop: int | None = None) -> Iterator[tuple]:
-        stop = self.n_scenes if stop is None else stop
-        for i in range(start, stop):
-            yield i, self.resolve(i)
 
     # ---- identity ----------------------------------------------------------------------
     def normalized(self) -> dict:

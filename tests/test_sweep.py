@@ -577,15 +577,7 @@ def test_write_trajectory_round_trip(tmp_path):
 
 
 # ------------------------------------------------------------------ the real engine
-def _real_engine_or_skip():
-    try:
-        api.simulate_resolved(P.resolve("freefall"))
-    except NotImplementedError:
-        pytest.skip("engine not yet in place")
-
-
 def test_real_engine_impact_sweep_same_for_1_and_2_jobs(tmp_path):
-    _real_engine_or_skip()
     text = """
         scene: impact
         grid: {m2: {logspace: [1, 50, 3]}}
@@ -604,7 +596,6 @@ def test_real_engine_impact_sweep_same_for_1_and_2_jobs(tmp_path):
 
 
 def test_real_engine_cycle_rows_match_single_runs(tmp_path):
-    _real_engine_or_skip()
     text = """
         grid: {drive: [rigid, flexible], B2: [40, 72]}
         cases: [small_far]
