@@ -138,41 +138,8 @@ def test_long_near_slides_with_fence_and_rail_S4():
     assert r["peak_rail_force"] > 0
 
 
-def _tip_depth(row, vals):
-    """Depth of the fence tip in the load (MODEL.md §5.2, separating-axis edge choice), or 0."""
-    L, A, l = vals["L"], vals["A"], vals["l"]
-    c, s = math.cos(row.phi), math.sin(row.phi)
-    to_local = lambda px, py: (c * (px - row.x) + s * (py - row.y), -s * (px - row.x) + c * (py - row.y))
-    tx, ty = to_local(l * math.cos(row.alpha), l * math.sin(row.alpha))
-    if abs(tx) >= L / 2 or abs(ty) >= A / 2:
-        return 0.0
-    ox, oy = to_local(0.0, 0.0)
-    over_x = min(L / 2, max(ox, tx)) - max(-L / 2, min(ox, tx))
-    over_y = min(A / 2, max(oy, ty)) - max(-A / 2, min(oy, ty))
-    return L / 2 - abs(tx) if over_x < over_y else A / 2 - abs(ty)
-
-
-def _penetrations(row, vals):
-    """Depth of every geometrically penetrated contact in a row (MODEL.md §5), by name."""
-    L, A, l = vals["L"], vals["A"], vals["l"]
-    ca, sa = math.cos(row.alpha), math.sin(row.alpha)
-    c, s = math.cos(row.phi), math.sin(row.phi)
-    out = {}
-    for j, (lx, ly) in enumerate(((L / 2, A / 2), (-L / 2, A / 2), (-L / 2, -A / 2), (L / 2, -A / 2))):
-        gx, gy = row.x + c * lx - s * ly, row.y + s * lx + c * ly
-        sd, h = gx * ca + gy * sa, -gx * sa + gy * ca
-        if 0 <= sd <= l and h < 0:
-            out[f"fence{j}"] = -h
-        if gx <= 0 and gy < 0:
-            out[f"rail{j}"] = -gy
-    tip = _tip_depth(row, vals)
-    if tip > 0:
-        out["tip"] = tip
-    return out
-
-
 @pytest.mark.parametrize("case", ["small_far", "long_near"])
-def test_energy_balance_closes(case):
+def test_energy_balance_closes(case, penetrations):
     # drive work + belt work = change of kinetic and elastic energy + all dissipation,
     # checked from row to row of the trajectory. A contact of MODEL.md §5 can appear or
     # vanish at a finite depth (a pressed corner slides past the tip; the tip enters the
@@ -189,7 +156,7 @@ def test_energy_balance_closes(case):
     scale = live.W_drive.abs().max()
     bal, pens = [], []
     for row in live.itertuples():
-        pen = _penetrations(row, vals)
+        pen = penetrations(row, vals)
         e = (0.5 * m1 * (row.vx ** 2 + row.vy ** 2) + 0.5 * I1 * row.omega ** 2 + 0.5 * I2 * row.alpha_dot ** 2
              + 0.5 * K2 * (row.alpha_w - row.alpha) ** 2 + sum(vals["k1"] * d ** 2.5 / 2.5 for d in pen.values()))
         bal.append((e - e0) - (row.W_drive + row.W_belt - row.E_damper - row.E_contact - row.E_friction))
@@ -197,7 +164,7 @@ def test_energy_balance_closes(case):
     bal = np.array(bal)
     # a contact that appears or vanishes at a finite depth
     jump = np.array([any(max(a.get(k, 0), b.get(k, 0)) > 1e-6 for k in set(a) ^ set(b))
-                     for a, b in zip(pens[:-1], pens[1:])])
+                     for a, b in zip(pens[:-1], pens[1:], strict=True)])
     inc = np.diff(bal)
     assert scale > 10.0
     assert jump.sum() <= 6

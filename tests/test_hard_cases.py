@@ -3,15 +3,10 @@ friction, tiny and heavy loads, extreme drives. Each must give finite results wi
 no tunnelling (penetration far below the failure bound) and results that converge as the
 step shrinks: the default step and a 4x finer one agree in outcome and to 1e-3."""
 import math
-import sys
-from pathlib import Path
 
 import pytest
 
 from fencesweep import resolve, simulate, simulate_resolved
-
-sys.path.insert(0, str(Path(__file__).parent))
-from test_cycle import _tip_depth  # noqa: E402  (independent re-implementation of MODEL.md §5.2)
 
 I2 = 5.0 * 1.2**2 / 3
 
@@ -67,7 +62,7 @@ def test_hard_case_is_stable_and_converges(name):
     assert a["t_exit"] == pytest.approx(b["t_exit"], rel=1e-3)
 
 
-def test_hard_cases_exercise_what_they_claim():
+def test_hard_cases_exercise_what_they_claim(tip_depth):
     jam = simulate(**HARD["jammed at the pivot, mu2=1"])
     assert jam["t_S4"] > 0.3  # fence and rail together
     flush = simulate(**HARD["face flush along the fence"])
@@ -79,7 +74,7 @@ def test_hard_cases_exercise_what_they_claim():
     vals = resolve("cycle", **HARD["hit by the tip"])
     _, tr = simulate_resolved(vals, trajectory=True)
     touching = tr[tr.N_fence > 100]
-    assert any(_tip_depth(row, vals) > 0 for row in touching.itertuples())
+    assert any(tip_depth(row, vals) > 0 for row in touching.itertuples())
 
 
 def _grazing_start():

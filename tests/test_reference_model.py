@@ -5,14 +5,9 @@ that it can be trusted as the yardstick of the engine.  Total run time a few s.
 """
 
 import math
-import os
-import sys
 
 import pytest
-
-sys.path.insert(0, os.path.join(os.path.dirname(__file__), os.pardir, "benchmarks"))
-
-import reference as ref  # noqa: E402
+import reference as ref  # benchmarks/reference.py (pyproject's pytest pythonpath)
 
 G = 9.81
 

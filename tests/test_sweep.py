@@ -343,27 +343,26 @@ def test_truncated_chunk_is_recomputed(tmp_path, monkeypatch):
     assert res.reused == 1
 
 
-KILL_SCRIPT = """
-import sys, time
-sys.path.insert(0, {tests!r})
-import test_sweep as T
-from fencesweep import sweep
-
-def slow(vals, trajectory=False):
+def slow_engine(vals, trajectory=False):
     time.sleep(0.02)
-    return T.fake_engine(vals)
+    return fake_engine(vals)
 
-sweep.run_sweep(T.spec(), {out!r}, jobs=1, simulate=slow)
-"""
+
+def sweep_to_kill(tmp_path, out: Path, **kw) -> list:
+    """The command of a process that runs the test spec into `out` with slow_engine; the
+    engine goes to it pickled by value (this module is registered with cloudpickle)."""
+    job = tmp_path / "job.pickle"
+    job.write_bytes(cloudpickle.dumps((spec(), str(out), dict(kw, simulate=slow_engine))))
+    code = ("import pickle, sys; from fencesweep import sweep; "
+            "spec, out, kw = pickle.loads(open(sys.argv[1], 'rb').read()); sweep.run_sweep(spec, out, **kw)")
+    return [sys.executable, "-c", code, str(job)]
 
 
 def test_process_killed_mid_sweep_then_rerun(tmp_path, monkeypatch):
     out = tmp_path / "t.parquet"
-    script = tmp_path / "kill_me.py"
-    script.write_text(KILL_SCRIPT.format(tests=str(Path(__file__).parent), out=str(out)))
     plan = sweep.make_plan(spec())
     work = sweep.work_root(out) / plan.salt[:16]
-    proc = subprocess.Popen([sys.executable, str(script)])
+    proc = subprocess.Popen(sweep_to_kill(tmp_path, out, jobs=1))
     try:
         polls = 0  # at most 12000 polls 5 ms apart (~60 s) for two chunks to appear
         while len(list(work.glob("chunk-*.parquet"))) < 2:
@@ -385,18 +384,13 @@ def test_process_killed_mid_sweep_then_rerun(tmp_path, monkeypatch):
     assert out.read_bytes() == ref.out.read_bytes()
 
 
-KILL_SCRIPT_2_JOBS = KILL_SCRIPT.replace("jobs=1", "jobs=2, serial_below=0.0")
-
-
 def test_process_with_workers_killed_mid_sweep_then_rerun(tmp_path, monkeypatch):
     """SIGKILL of a sweep on 2 workers: its workers exit, what they wrote is reused, the table is whole."""
     psutil = pytest.importorskip("psutil")
     out = tmp_path / "t.parquet"
-    script = tmp_path / "kill_me.py"
-    script.write_text(KILL_SCRIPT_2_JOBS.format(tests=str(Path(__file__).parent), out=str(out)))
     plan = sweep.make_plan(spec())
     work = sweep.work_root(out) / plan.salt[:16]
-    proc = subprocess.Popen([sys.executable, str(script)])
+    proc = subprocess.Popen(sweep_to_kill(tmp_path, out, jobs=2, serial_below=0.0))
     try:
         polls = 0
         while len(list(work.glob("chunk-*.parquet"))) < 2:

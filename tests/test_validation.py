@@ -20,18 +20,12 @@ The grazing scenes (graze_* / miss_*: a contact of ~2e-5 m penetration and a gap
 from __future__ import annotations
 
 import math
-import os
-import sys
 
+import make_reference  # benchmarks/ (pyproject's pytest pythonpath): reads the CSV, never the engine
 import pandas as pd
 import pytest
 
-BENCH = os.path.join(os.path.dirname(os.path.abspath(__file__)), os.pardir, "benchmarks")
-sys.path.insert(0, BENCH)
-
-import make_reference  # noqa: E402  (benchmarks/: reads the CSV, never imports the engine)
-
-import fencesweep  # noqa: E402
+import fencesweep
 
 #: Relative error allowed in peak_force, deflection_max and t_exit.  MODEL.md asks two
 #: independent implementations to agree to 1e-3; the engine's default settings must do
