@@ -580,6 +580,16 @@ def check_output(spec: S.Spec, out: Path) -> None:
                              f"or add --overwrite to discard it")
 
 
+def check_can_start(spec: S.Spec, out: Path, overwrite: bool = False) -> None:
+    """Raise UsageError if a sweep of `spec` into `out` must not start: too large to plan
+    (plan_size_problem), or, without `overwrite`, another spec's results at `out` (check_output)."""
+    problem = plan_size_problem(spec)
+    if problem:
+        raise UsageError(problem)
+    if not overwrite:
+        check_output(spec, out)
+
+
 def _open_work(root: Path, work: Path, resume: bool, log: Callable[[str], None]) -> bool:
     """Make the sweep's work directory: remove other specs' (or, without resume, all) chunks
     and the temporary files of a worker killed while writing. Returns whether it was new."""
@@ -635,7 +645,7 @@ def _compute(plan: Plan, spec: S.Spec, work: Path, pending: list, done: list, jo
     return stats
 
 
-def run_sweep(spec: S.Spec | str | Path, out: str | Path | None = None, jobs: int | None = None,
+def run_sweep(spec: S.Spec | str | Path, out: str | Path | None = None, jobs: int | None = None,  # noqa: C901 (16)
               resume: bool = True, backend: str = "loky", scheduler: str | None = None,
               progress: bool = False, simulate: Callable | None = None, plan: Plan | None = None,
               log: Callable[[str], None] | None = None, serial_below: float | None = None,
@@ -652,11 +662,7 @@ def run_sweep(spec: S.Spec | str | Path, out: str | Path | None = None, jobs: in
     if not isinstance(spec, S.Spec):
         spec = S.load(spec)
     out = Path(out) if out is not None else default_output(spec)
-    problem = plan_size_problem(spec)
-    if problem:  # before anything is made or removed
-        raise UsageError(problem)
-    if not overwrite:
-        check_output(spec, out)
+    check_can_start(spec, out, overwrite)  # before anything is made or removed
     if jobs is None:
         import joblib
 

@@ -185,7 +185,7 @@ def test_energy_conserved_free_fence_frictionless_elastic(geom, kind):
     res, _ = ref.simulate_cycle(p, rtol=1e-9, keep_trajectory=True)
     model = res["_model"]
     energies, kinds = [], set()
-    for (t0, t1, md, sol, ts) in res["_segments"]:
+    for (t0, t1, md, sol, _) in res["_segments"]:
         if md.fence_dyn and t1 > t0:
             energies += [_mechanical_energy(model, md, sol(t0), t0),
                          _mechanical_energy(model, md, sol(t1), t1)]
