@@ -64,14 +64,9 @@ ONSET_STEP = 1e-6
 #: a touching contact is released only when its gap exceeds it, and switches between pushing
 #: and clipped only when its Kelvin force is beyond it. A load resting at zero depth or zero
 #: force (long_near starts with a corner at the pivot, on the fence line) otherwise toggles
-#: on rounding noise, ~1e-16 of the scales, at every step. 1e-10 l is ~1e-3 of the position
+#: on rounding noise, ~1e-16 of the scales, at every step. 1e-10 l is ~1e-4 of the position
 #: accuracy at the default tolerance: no result can see it.
 CONTACT_HYSTERESIS = 1e-10
-
-#: A graze is looked for inside a step when a gap with an interior minimum (its rate changes
-#: sign over the step) has a cubic-Hermite minimum below this fraction of its smaller end
-#: value; the minimum is then searched on the step's dense output.
-GRAZE_FRACTION = 0.5
 
 #: Peaks of the tracked quantities (forces, deflection, alpha) are refined by golden-section
 #: search on the dense output of the two steps around a local maximum of the samples, to
