@@ -4,7 +4,10 @@ present one, side by side in one run on the same machine.
     python benchmarks/kernel_v1_v2.py      -> prints a table, writes results/kernel_v1_v2.md
 
 v1 is exported from git into a temporary folder and run in a subprocess (its package has
-the same name); both time the compiled kernel warm (CPU time, median of 5 repeats of 50 runs).
+the same name); both time the compiled kernel warm (CPU time, median of 5 repeats of 50 runs)
+on the named cases (flexible and rigid drive), and on a fixed sample of the main job's scenes
+(SAMPLE scenes of sweeps/b2k2.yaml drawn with a fixed seed; median of 5 repeats of 10 runs
+each): the issue's "kernel time per cycle over a fixed sample of b2k2 scenes".
 """
 from __future__ import annotations
 
@@ -25,26 +28,42 @@ from fencesweep.setup import prepare
 from fencesweep.scenes.cycle import cycle_kernel, TRAJ_COLUMNS
 from fencesweep.results import N_CYCLE_RESULTS, unpack
 out = np.empty(N_CYCLE_RESULTS); traj = np.empty((0, len(TRAJ_COLUMNS)))
+def timed(p, n):
+    cycle_kernel(p, out, traj)
+    ts = []
+    for _ in range(5):
+        t = time.process_time()
+        for _ in range(n):
+            cycle_kernel(p, out, traj)
+        ts.append((time.process_time() - t) / n)
+    return statistics.median(ts) * 1e3, unpack("cycle", out)
 rows = []
 for case in ("small_far", "long_near"):
     for drive in ("flexible", "rigid"):
-        p = prepare(resolve("cycle", case, drive=drive))
-        cycle_kernel(p, out, traj)
-        ts = []
-        for _ in range(5):
-            t = time.process_time()
-            for _ in range(50):
-                cycle_kernel(p, out, traj)
-            ts.append((time.process_time() - t) / 50)
-        r = unpack("cycle", out)
-        rows.append({"case": case, "drive": drive, "ms": statistics.median(ts) * 1e3,
-                     "steps": r["n_steps"], "peak_force": r["peak_force"]})
-print(json.dumps(rows))
+        ms, r = timed(prepare(resolve("cycle", case, drive=drive)), 50)
+        rows.append({"case": case, "drive": drive, "ms": ms, "steps": r["n_steps"], "peak_force": r["peak_force"]})
+sample = []
+for case, b2, k2 in json.loads(sys.argv[1]):
+    ms, r = timed(prepare(resolve("cycle", case, B2=b2, K2=k2)), 10)
+    sample.append({"ms": ms, "steps": r["n_steps"], "peak_force": r["peak_force"], "outcome": r["outcome"]})
+print(json.dumps({"named": rows, "sample": sample}))
 """
 
 
-def run(where: Path) -> list[dict]:
-    res = subprocess.run([sys.executable, "-c", CODE], cwd=where, capture_output=True, text=True,
+#: scenes of the main job in the fixed sample, and the seed that draws them from its grid
+SAMPLE, SEED = 60, 20261123
+
+
+def b2k2_sample() -> list[tuple[str, float, float]]:
+    """SAMPLE (case, B2, K2) of sweeps/b2k2.yaml's grid (81 x 81 x 2), drawn without replacement."""
+    import numpy as np
+    b2, k2 = np.linspace(0, 200, 81), np.linspace(100, 2100, 81)
+    idx = np.random.default_rng(SEED).choice(81 * 81 * 2, SAMPLE, replace=False)
+    return [(("small_far", "long_near")[i // 6561], float(b2[i % 6561 // 81]), float(k2[i % 81])) for i in idx]
+
+
+def run(where: Path) -> dict:
+    res = subprocess.run([sys.executable, "-c", CODE, json.dumps(b2k2_sample())], cwd=where, capture_output=True, text=True,
                          env={"PYTHONPATH": str(where), "PATH": "/usr/bin:/bin"}, check=True)
     return json.loads(res.stdout.strip().splitlines()[-1])
 
@@ -60,9 +79,18 @@ def main() -> None:
              "median of 5 x 50 runs, both in one run on the same machine.", "",
              "| case | drive | v1 ms | v1 steps | v2 ms | v2 steps | v1 / v2 | peak_force v1 | peak_force v2 |",
              "|---|---|---|---|---|---|---|---|---|"]
-    for a, b in zip(old, new):
+    for a, b in zip(old["named"], new["named"]):
         lines.append(f"| {a['case']} | {a['drive']} | {a['ms']:.3f} | {a['steps']} | {b['ms']:.3f} | {b['steps']} | "
                      f"{a['ms'] / b['ms']:.2f} | {a['peak_force']:.2f} | {b['peak_force']:.2f} |")
+    o, n = old["sample"], new["sample"]
+    t_old, t_new = sum(r["ms"] for r in o), sum(r["ms"] for r in n)
+    same = sum(a["outcome"] == b["outcome"] for a, b in zip(o, n))
+    dpk = max(abs(a["peak_force"] - b["peak_force"]) / max(abs(a["peak_force"]), 1.0) for a, b in zip(o, n))
+    lines += ["", f"Fixed sample of the main job: {SAMPLE} scenes of sweeps/b2k2.yaml (seed {SEED}).", "",
+              "| kernel | mean ms per cycle | mean steps | |", "|---|---|---|---|",
+              f"| v1 | {t_old / len(o):.3f} | {sum(r['steps'] for r in o) / len(o):.0f} | |",
+              f"| v2 | {t_new / len(n):.3f} | {sum(r['steps'] for r in n) / len(n):.0f} | v1 / v2 = {t_old / t_new:.2f} |",
+              "", f"Same outcome in {same} of {len(o)}; largest peak_force difference v1 - v2 {dpk:.1e} (relative)."]
     text = "\n".join(lines) + "\n"
     print(text)
     (ROOT / "results" / "kernel_v1_v2.md").write_text(text)
