@@ -372,15 +372,17 @@ def find_event(t, h, y0, Q, p, iw, tmp, g0, r0, g1, r1, codes1, tags1, exited):
 # ---------------------------------------------------------------- tracked maxima
 
 @njit(cache=True)
-def quantities(t, y, p, iw, aux, dy, q):
-    """The tracked quantities at (t, y): fence and rail force sums, |alpha - alpha_w|, alpha."""
+def quantities(t, y, p, iw, aux, dy, q, forces=True):
+    """The tracked quantities at (t, y): fence and rail force sums, |alpha - alpha_w|, alpha.
+    Without `forces` the force sums (which cost a right-hand side) are left as they are."""
     al, dal, aw, daw = fence_state(t, y, p, iw[IW_MODE])
-    q[Q_NF] = 0.0
-    q[Q_NR] = 0.0
-    if iw[IW_LOAD] != 0 and iw[IW_RIDE] == 0:
-        rhs(t, y, p, iw, dy, aux)
-        q[Q_NF] = aux[AX_NF]
-        q[Q_NR] = aux[AX_NR]
+    if forces:
+        q[Q_NF] = 0.0
+        q[Q_NR] = 0.0
+        if iw[IW_LOAD] != 0 and iw[IW_RIDE] == 0:
+            rhs(t, y, p, iw, dy, aux)
+            q[Q_NF] = aux[AX_NF]
+            q[Q_NR] = aux[AX_NR]
     q[Q_DEFL] = abs(al - aw)
     q[Q_ALPHA] = al
 
@@ -412,24 +414,52 @@ def _quantity_at(ctx, theta):
     return q[kind]
 
 
+@njit(cache=True, inline="always")
+def near_maximum(q0, q1, acc, k):
+    """Can this step hold a new maximum of tracked quantity k? Only if one of its end samples
+    is within numerics.PEAK_CANDIDATE of the running maximum (the samples around an interior
+    peak are, at steps that resolve it), and that maximum is not 0 (a force before any contact:
+    a contact's onset is an event, after which the step is judged anew)."""
+    m = max(acc[A_QMAX + k], q0[k], q1[k])
+    return max(q0[k], q1[k]) >= NU.PEAK_CANDIDATE * m and m > 0.0
+
+
+UNJUDGED = -1.0  # rising[k] when the step before did not judge quantity k at its end
+
+
 @njit(cache=True)
 def track_maxima(t, h, theta_end, y0, Q, p, iw, tmp, aux, dy, q0, q1, qa, qb, qs, acc, rising, Ks, ys, atol):
     """Running maxima of the tracked quantities over the step [t, t + theta_end h]: the end
     samples, and an interior maximum (the quantity rising at the start and falling at the
     end, judged on the dense output) located by golden-section search (MODEL.md §9).
-    rising[k] says whether quantity k rose at the start (carried over from the end of the
-    step before, or judged here after an event); on return it says so for the step's end."""
-    d = 1e-3 * theta_end
-    if rising[N_Q] != 0.0:  # the mode changed at t: judge the start on this step
-        I.dense_eval(y0, Q, d, tmp, N_STATE)
-        quantities(t + d * h, tmp, p, iw, aux, dy, qa)
+    rising[k] says whether quantity k rose at the start (1, 0; UNJUDGED when the step before
+    was far from its maximum, or after an event: rising[N_Q] = 1); on return it says so for
+    the step's end. The force sums cost a right-hand side per sample: they are sampled only
+    in steps near their running maximum."""
+    forces = near_maximum(q0, q1, acc, Q_NF) or near_maximum(q0, q1, acc, Q_NR)
+    if rising[N_Q] != 0.0:
         for k in range(N_Q):
-            rising[k] = 1.0 if qa[k] > q0[k] else 0.0
+            rising[k] = UNJUDGED
+    d = 1e-3 * theta_end
+    judge = False
+    for k in range(N_Q):
+        if rising[k] == UNJUDGED and (forces or k >= Q_DEFL):
+            judge = True
+    if judge:  # the start's slope, on the dense output
+        I.dense_eval(y0, Q, d, tmp, N_STATE)
+        quantities(t + d * h, tmp, p, iw, aux, dy, qa, forces)
+        for k in range(N_Q):
+            if rising[k] == UNJUDGED and (forces or k >= Q_DEFL):
+                rising[k] = 1.0 if qa[k] > q0[k] else 0.0
     I.dense_eval(y0, Q, theta_end - d, tmp, N_STATE)
-    quantities(t + (theta_end - d) * h, tmp, p, iw, aux, dy, qb)
+    quantities(t + (theta_end - d) * h, tmp, p, iw, aux, dy, qb, forces)
     for k in range(N_Q):
         m = max(acc[A_QMAX + k], q0[k], q1[k])
-        if rising[k] != 0.0 and qb[k] > q1[k] and max(qb[k], q1[k], q0[k]) >= NU.PEAK_CANDIDATE * m:
+        if k < Q_DEFL and not forces:
+            acc[A_QMAX + k] = m
+            rising[k] = UNJUDGED
+            continue
+        if rising[k] == 1.0 and qb[k] > q1[k] and max(qb[k], q1[k], q0[k]) >= NU.PEAK_CANDIDATE * m:
             th, qm = I.golden_max(_quantity_at, (t, h, y0, Q, p, iw, tmp, aux, dy, qs, k),
                                   0.0, theta_end, NU.PEAK_TOL)
             # the value at the peak from a step of the method to it, not from the dense output
