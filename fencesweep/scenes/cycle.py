@@ -409,7 +409,7 @@ def all_finite(y):
 def _quantity_at(ctx, theta):
     """One tracked quantity on the dense output (for golden_max)."""
     t0, h, y0, Q, p, iw, tmp, aux, dy, q, kind = ctx
-    I.dense_eval(y0, Q, theta, tmp, N_STATE)
+    I.dense_eval(y0, Q, theta, tmp, N_CTRL)
     quantities(t0 + theta * h, tmp, p, iw, aux, dy, q)
     return q[kind]
 
@@ -446,12 +446,12 @@ def track_maxima(t, h, theta_end, y0, Q, p, iw, tmp, aux, dy, q0, q1, qa, qb, qs
         if rising[k] == UNJUDGED and (forces or k >= Q_DEFL):
             judge = True
     if judge:  # the start's slope, on the dense output
-        I.dense_eval(y0, Q, d, tmp, N_STATE)
+        I.dense_eval(y0, Q, d, tmp, N_CTRL)
         quantities(t + d * h, tmp, p, iw, aux, dy, qa, forces)
         for k in range(N_Q):
             if rising[k] == UNJUDGED and (forces or k >= Q_DEFL):
                 rising[k] = 1.0 if qa[k] > q0[k] else 0.0
-    I.dense_eval(y0, Q, theta_end - d, tmp, N_STATE)
+    I.dense_eval(y0, Q, theta_end - d, tmp, N_CTRL)
     quantities(t + (theta_end - d) * h, tmp, p, iw, aux, dy, qb, forces)
     for k in range(N_Q):
         m = max(acc[A_QMAX + k], q0[k], q1[k])
