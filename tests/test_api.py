@@ -6,6 +6,8 @@ import pytest
 from fencesweep import api, resolve
 from fencesweep.scenes import cycle
 
+pytestmark = pytest.mark.plain_python  # also run without Numba's JIT: tests/test_plain_python.py
+
 
 def test_kernel_reports_the_rows_a_short_buffer_could_not_hold():
     from fencesweep.results import N_CYCLE_RESULTS

@@ -10,6 +10,8 @@ from fencesweep.calibrate import damping_coefficient
 from fencesweep.contact import (belt_friction, coulomb, drop_speed, hertz_contact_time, hertz_peak,
                                 mean_footprint_radius, normal_force)
 
+pytestmark = pytest.mark.plain_python  # also run without Numba's JIT: tests/test_plain_python.py
+
 
 @pytest.mark.parametrize("e, q", [(0.2, 1.6351), (0.5, 0.5708), (0.9, 0.0766)])
 def test_q_of_e_matches_model_reference_values(e, q):

@@ -13,6 +13,8 @@ from fencesweep.params import relative_damping
 from fencesweep.scenes.cycle import IW_LOAD, IW_MODE, FM_KELVIN, N_AUX, N_IW, N_STATE, rhs
 from fencesweep.setup import prepare
 
+pytestmark = pytest.mark.plain_python  # also run without Numba's JIT: tests/test_plain_python.py
+
 G = 9.81
 
 

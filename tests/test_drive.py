@@ -8,6 +8,8 @@ from fencesweep import resolve
 from fencesweep.drive import crank_rocker_geometry, drive_angle, rocker_angle
 from fencesweep.setup import prepare
 
+pytestmark = pytest.mark.plain_python  # also run without Numba's JIT: tests/test_plain_python.py
+
 
 def _p(swing, ratio, tc=1.0, profile="crank_rocker"):
     return prepare(resolve("cycle", swing=swing, coupler_ratio=ratio, t_c=tc, profile=profile,

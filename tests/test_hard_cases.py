@@ -8,6 +8,8 @@ import pytest
 
 from fencesweep import resolve, simulate, simulate_resolved
 
+pytestmark = pytest.mark.plain_python  # also run without Numba's JIT: tests/test_plain_python.py
+
 I2 = 5.0 * 1.2**2 / 3
 
 

@@ -3,6 +3,8 @@ import pytest
 
 from fencesweep import simulate
 
+pytestmark = pytest.mark.plain_python  # also run without Numba's JIT: tests/test_plain_python.py
+
 
 def test_free_fence_impulse_matches_classical_theory_paper_eq1():
     # angular momentum about the pivot is conserved in a free-fence impact, so the impulse
