@@ -783,10 +783,11 @@ def errors(res: dict, ref) -> dict:
 
 
 def peer_errors(rtol: float = 1e-6, dt_eval: float = DT_EVAL, refine: bool = False,
-                repeat: int = 3, csv: Path | None = None):
+                repeat: int = 3, csv: Path | None = None, judge=None):
     """The peer on every scene of benchmarks/reference_results.csv: one row per scene with
     solver, setting, id, time (CPU s per cycle, warm, median of ``repeat``), steps (nfev),
-    n_steps, outcome, status and the errors of :func:`errors` -- the columns of
+    n_steps, outcome, status and the errors of ``judge(result, reference row)`` (default
+    :func:`errors`; benchmarks/work_precision.py passes its own) -- the columns of
     benchmarks/work_precision.py's rows; a scene whose first (warm-up) run takes over SLOW
     seconds is timed by that run alone.  Returns a pandas DataFrame."""
     import pandas as pd
@@ -808,7 +809,7 @@ def peer_errors(rtol: float = 1e-6, dt_eval: float = DT_EVAL, refine: bool = Fal
                 ts.append(time.process_time() - t)
         rows.append({"solver": "numbalsoda LSODA (cfunc)", "setting": setting, "id": r["id"],
                      "time": float(np.median(ts)), "steps": res["nfev"], "n_steps": res["n_steps"],
-                     "outcome": res["outcome"], "status": res["status"], **errors(res, r)})
+                     "outcome": res["outcome"], "status": res["status"], **(judge or errors)(res, r)})
     return pd.DataFrame(rows)
 
 

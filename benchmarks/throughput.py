@@ -15,8 +15,13 @@ sweep machinery before and after. `--tree DIR` measures the package in DIR (a ch
 an exported snapshot) instead of this checkout.
 
     python benchmarks/throughput.py [--spec sweeps/b2k2.yaml] [--repeat 3] [--orchestration-of REV] [--no-cold]
+                                    [--phases-only | --no-phases]
 
 writes results/throughput.md and results/throughput.csv. Run it alone on the machine.
+
+The page ends with the cost per phase of a cycle (approach, contact, after the exit) of the
+named cases, measured by benchmarks/phase_cost.py; `--phases-only` measures only that and
+replaces that section of an existing results/throughput.md, `--no-phases` leaves it out.
 """
 from __future__ import annotations
 
@@ -142,7 +147,7 @@ def with_orchestration_of(rev: str, tree: Path, where: Path) -> Path:
     return copy
 
 
-def main() -> None:
+def parse_args() -> argparse.Namespace:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--spec", default="sweeps/b2k2.yaml")
     ap.add_argument("--repeat", type=int, default=3, help="warm runs per tree and job count (median)")
@@ -150,7 +155,34 @@ def main() -> None:
                     help="also measure this package with the orchestration files of git revision REV")
     ap.add_argument("--tree", metavar="DIR", type=Path, default=ROOT, help="the package to measure")
     ap.add_argument("--no-cold", action="store_true", help="skip the cold-cache runs")
-    args = ap.parse_args()
+    ap.add_argument("--phases-only", action="store_true",
+                    help="only the cost per phase: replace that section of results/throughput.md")
+    ap.add_argument("--no-phases", action="store_true", help="leave out the cost per phase")
+    ap.add_argument("--phase-rounds", type=int, default=101, help="timed runs per case for the cost per phase")
+    return ap.parse_args()
+
+
+def main() -> None:
+    args = parse_args()
+    md = ROOT / "results" / "throughput.md"
+    if args.phases_only:
+        old = md.read_text().split(PHASE_HEADING)[0].rstrip("\n").split("\n") if md.exists() else []
+        md.write_text("\n".join(old + phase_section(args)) + "\n")
+        print(f"wrote the cost per phase into {md.relative_to(ROOT)}")
+        return
+    df, head = measure_all(args)
+    out = ROOT / "results"
+    out.mkdir(exist_ok=True)
+    df.to_csv(out / "throughput.csv", index=False, float_format="%.4g")
+    lines = write_md(df, args, head)
+    if not args.no_phases:
+        lines += phase_section(args)
+    md.write_text("\n".join(lines) + "\n")
+    print(f"wrote {md.relative_to(ROOT)}, results/throughput.csv")
+
+
+def measure_all(args) -> tuple[pd.DataFrame, str]:
+    """Every run of the throughput table (cold, then warm interleaved); (rows, HEAD's short hash)."""
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         tree = args.tree.resolve()
@@ -180,14 +212,31 @@ def main() -> None:
             for label, tree in trees.items():
                 for jobs in (1, 2):
                     measure(label, tree, "warm", jobs)
-    df = pd.DataFrame(rows)
-    out = ROOT / "results"
-    out.mkdir(exist_ok=True)
-    df.to_csv(out / "throughput.csv", index=False, float_format="%.4g")
-    write_md(df, args, head, out / "throughput.md")
+    return pd.DataFrame(rows), head
 
 
-def write_md(df: pd.DataFrame, args, head: str, path: Path) -> None:
+PHASE_HEADING = "## Cost per phase of a cycle"
+
+
+def phase_section(args) -> list[str]:
+    """The cost per phase of the named cases (benchmarks/phase_cost.py), as Markdown lines."""
+    sys.path[:0] = [str(ROOT), str(ROOT / "benchmarks")]
+    import phase_cost
+
+    head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True,
+                          text=True).stdout.strip()
+    dirty = subprocess.run(["git", "status", "--porcelain", "--", "fencesweep"], cwd=ROOT, capture_output=True,
+                           text=True).stdout.strip()
+    head += " with uncommitted changes to fencesweep/" if dirty else ""
+    lines = ["", PHASE_HEADING, "",
+             f"Measured at commit {head} (this checkout's package, in this process; "
+             "`python benchmarks/throughput.py --phases-only` redoes this section alone).", ""]
+    lines += phase_cost.phase_table(args.phase_rounds)
+    print("\n".join(lines), flush=True)
+    return lines
+
+
+def write_md(df: pd.DataFrame, args, head: str) -> list[str]:
     def med(g, col):
         return statistics.median(g[col]) if col in g and g[col].notna().any() else float("nan")
 
@@ -227,8 +276,8 @@ def write_md(df: pd.DataFrame, args, head: str, path: Path) -> None:
         cells = [f"{med(g, col):.3f}" if col in g and g[col].notna().any() else "-"
                  for _, g in warm.groupby(["code", "jobs"], sort=False)]
         lines.append(f"| {what} | " + " | ".join(cells) + " |")
-    path.write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
+    return lines
 
 
 if __name__ == "__main__":

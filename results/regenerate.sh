@@ -1,14 +1,23 @@
 #!/usr/bin/env bash
 # Regenerate everything in results/ from scratch: the sweep tables, the single-cycle
-# trajectories, the figures and REPORT.md. Run from anywhere:
+# trajectories, the figures, REPORT.md and the benchmark pages that time the kernel
+# (work_precision, throughput). Run from anywhere:
 #
-#     bash results/regenerate.sh [--jobs N]
+#     bash results/regenerate.sh [--jobs N] [--no-benchmarks]
 #
-# Needs the package with its plotting extra: pip install -e ".[plot]"
+# Needs the package with its plotting extra: pip install -e ".[plot]"; the benchmarks (step 5,
+# minutes, timed: run the script alone on the machine) need the bench extra: pip install -e ".[bench]"
 set -euo pipefail
 cd "$(dirname "$0")/.."
 JOBS=()
-if [[ "${1:-}" == "--jobs" ]]; then JOBS=(--jobs "$2"); fi
+BENCHMARKS=1
+while [[ $# -gt 0 ]]; do
+  case "$1" in
+    --jobs) JOBS=(--jobs "$2"); shift 2 ;;
+    --no-benchmarks) BENCHMARKS=0; shift ;;
+    *) echo "usage: bash results/regenerate.sh [--jobs N] [--no-benchmarks]" >&2; exit 2 ;;
+  esac
+done
 export FENCESWEEP_REGEN_START="$(date +%s)"
 
 # 1. start from nothing (only what this script makes)
@@ -30,5 +39,12 @@ fencesweep plot trajectories --results results
 # 4. figures and the report
 fencesweep plot all --results results
 fencesweep plot report --results results
+
+# 5. the benchmark pages that time the current kernel: work-precision against the reference (with
+#    compiled LSODA and solve_ivp), throughput of the main job with the cost per phase of a cycle
+if [[ "$BENCHMARKS" == 1 ]]; then
+  python benchmarks/work_precision.py
+  python benchmarks/throughput.py
+fi
 
 echo "results/ regenerated in $(( $(date +%s) - FENCESWEEP_REGEN_START )) s"
