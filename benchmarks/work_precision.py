@@ -22,7 +22,7 @@ scene's free-fall force), angles against max(|ref|, 0.01 rad), times against max
 seen or not). Time: CPU time per cycle, warm (JIT and caches excluded), the median of
 --repeat calls per scene (solve_ivp: one call per scene, in --jobs processes).
 
-    python benchmarks/work_precision.py [--repeat 3] [--jobs 2] [--no-ivp] [--no-peer]
+    python benchmarks/work_precision.py [--repeat 3] [--jobs 2] [--no-ivp] [--no-peer] [--from-csv]
 
 writes results/work_precision.csv (one row per solver, setting and scene),
 results/work_precision.md and results/figures/work_precision.png. Time it alone on the
@@ -342,21 +342,35 @@ def main() -> None:
     ap.add_argument("--jobs", type=int, default=2, help="parallel solve_ivp processes")
     ap.add_argument("--no-ivp", action="store_true", help="skip solve_ivp (minutes)")
     ap.add_argument("--no-peer", action="store_true", help="skip compiled LSODA")
+    ap.add_argument("--from-csv", action="store_true",
+                    help="measure nothing: rewrite the .md and the figure from results/work_precision.csv "
+                         "(made with the same --repeat)")
     args = ap.parse_args()
+    out = ROOT / "results"
+    out.mkdir(exist_ok=True)
+    if args.from_csv:
+        df = pd.read_csv(out / "work_precision.csv")
+    else:
+        df = measure(args)
+        df.to_csv(out / "work_precision.csv", index=False)
+    write_pages(df, args, out)
+
+
+def measure(args) -> pd.DataFrame:
     refs = tv.ROWS
-    ref_df = pd.read_csv(make_reference.OUT)
     parts = [run_engine(refs, args.repeat)]
     if not args.no_peer:
         parts.append(run_peer(args.repeat))
     if not args.no_ivp:
         parts.append(run_ivp(refs, args.jobs))
-    df = pd.concat([p for p in parts if p is not None], ignore_index=True)
-    out = ROOT / "results"
-    out.mkdir(exist_ok=True)
-    df.to_csv(out / "work_precision.csv", index=False)
+    return pd.concat([p for p in parts if p is not None], ignore_index=True)
+
+
+def write_pages(df: pd.DataFrame, args, out: Path) -> None:
+    ref_df = pd.read_csv(make_reference.OUT)
     summary = summarise(df)
     ref_rtol, ref_method = float(ref_df.ref_rtol.max()), str(ref_df.ref_method.iloc[0])
-    n = len(refs)
+    n = len(ref_df)
     text = ["# Work-precision: the engine, its RK4 baseline, compiled LSODA and solve_ivp", "",
             "Regenerate: `python benchmarks/work_precision.py`, alone on the machine (also run by "
             "`bash results/regenerate.sh`). Figure: `results/figures/work_precision.png`; every scene's "
@@ -373,8 +387,8 @@ def main() -> None:
             "rail contact seen or not). Time: CPU time per cycle, warm (JIT and caches excluded), the median of "
             f"{args.repeat} calls per scene after a warm-up call (solve_ivp: one call per scene); the table "
             "gives the median and the mean over the scenes, the figure the median. Settings: the engine's "
-            f"step_factor (tolerance {numerics.TOL:g} x step_factor^{numerics.TOL_EXPONENT:g}), the RK4 baseline's fixed step dt [s], the rtol "
-            "of LSODA and of solve_ivp.", "",
+            f"step_factor (tolerance {numerics.TOL:g} x step_factor^{numerics.TOL_EXPONENT:g}), the RK4 "
+            "baseline's fixed step dt [s], the rtol of LSODA and of solve_ivp.", "",
             md_table(summary.drop(columns="knob")), "", *[p + "\n" for p in prose(summary, df, ref_rtol)]]
     (out / "work_precision.md").write_text("\n".join(text).rstrip() + "\n")
     print("\n".join(text))

@@ -41,10 +41,16 @@ fencesweep plot all --results results
 fencesweep plot report --results results
 
 # 5. the benchmark pages that time the current kernel: work-precision against the reference (with
-#    compiled LSODA and solve_ivp), throughput of the main job with the cost per phase of a cycle
+#    compiled LSODA and solve_ivp), throughput of the main job with the cost per phase of a cycle,
+#    the compiled LSODA peer on the named cases
 if [[ "$BENCHMARKS" == 1 ]]; then
   python benchmarks/work_precision.py
   python benchmarks/throughput.py
+  if python -c "import numbalsoda" 2>/dev/null; then
+    python benchmarks/lsoda_peer.py   # the named cases beside compiled LSODA -> results/lsoda_peer.md
+  else
+    echo "skipping benchmarks/lsoda_peer.py: numbalsoda is not installed (pip install -e \".[bench]\", needs gfortran)"
+  fi
 fi
 
 echo "results/ regenerated in $(( $(date +%s) - FENCESWEEP_REGEN_START )) s"
