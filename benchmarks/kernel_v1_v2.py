@@ -25,7 +25,11 @@ import numpy as np
 import fencesweep
 from fencesweep.params import resolve
 from fencesweep.setup import prepare
-from fencesweep.scenes.cycle import cycle_kernel, TRAJ_COLUMNS
+from fencesweep.scenes.cycle import TRAJ_COLUMNS
+try:  # since the scene stream, the kernel of both scenes lives in scenes/stream.py
+    from fencesweep.scenes.stream import cycle_kernel
+except ImportError:
+    from fencesweep.scenes.cycle import cycle_kernel
 from fencesweep.results import N_CYCLE_RESULTS, unpack
 out = np.empty(N_CYCLE_RESULTS); traj = np.empty((0, len(TRAJ_COLUMNS)))
 def timed(p, n):

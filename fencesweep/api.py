@@ -44,7 +44,8 @@ def simulate_resolved(vals: dict, trajectory: bool = False):
     p = prepare(vals)
     scene = vals["scene"]
     if scene == "cycle":
-        from .scenes.cycle import TRAJ_COLUMNS, TRAJ_UNITS, cycle_kernel
+        from .scenes.cycle import TRAJ_COLUMNS, TRAJ_UNITS
+        from .scenes.stream import cycle_kernel
 
         out = np.empty(N_CYCLE_RESULTS)
         traj = np.empty((TRAJECTORY_ROWS if trajectory else 0, len(TRAJ_COLUMNS)))

@@ -66,3 +66,8 @@ PROFILE_CRANK_ROCKER, PROFILE_HARMONIC = 0, 1
 
 G = 9.81  # m/s^2, MODEL.md §6
 
+
+# --- one load of a stream (MODEL.md §14): the entries of p that change with the load, in the
+# order of a row of the kernel's `loads` table (setup.load_table); the rest of p is the scene's ---
+LOAD_SLOTS = (LL, AA, M1, DP, RS, PHI0, I1, KC, CD, KLIN, FMAX, MMAX, RHO, FFORCE)
+N_LOAD = len(LOAD_SLOTS)

@@ -12,17 +12,19 @@ import math
 import numpy as np
 
 # ---- outcome codes (MODEL.md §9) ----
-SCRAPED, ESCAPED, TIMEOUT, FAILED = 0, 1, 2, 3
-OUTCOMES = ("scraped", "escaped", "timeout", "failed")
+SCRAPED, ESCAPED, TIMEOUT, FAILED, JAMMED = 0, 1, 2, 3, 4
+#: jammed (MODEL.md §14, `stream` only): the next cycle's load arrived with this one still on the belt
+OUTCOMES = ("scraped", "escaped", "timeout", "failed", "jammed")
 
 # ---- status codes: 0 ok, the rest name why a run cannot be trusted ----
-ST_OK, ST_PENETRATION, ST_NONFINITE, ST_MAXSTEPS, ST_UNDERFLOW = 0, 1, 2, 3, 4
+ST_OK, ST_PENETRATION, ST_NONFINITE, ST_MAXSTEPS, ST_UNDERFLOW, ST_NOT_RUN = 0, 1, 2, 3, 4, 5
 STATUS_MESSAGES = (
     "ok",
     "failed: penetration larger than half the load's smaller side (contact too soft or step too large)",
     "failed: non-finite state",
     "failed: step budget exhausted",
     "failed: step size underflow (the error tolerance cannot be met)",
+    "failed: not run, an earlier cycle of the stream failed",
 )
 
 # ---- stages (MODEL.md §10) ----
@@ -70,23 +72,43 @@ IMPACT_RESULTS = (
     ("status", "-", "ok, or failed and why"),
 )
 FREEFALL_RESULTS = IMPACT_RESULTS
+#: MODEL.md §14: a stream's cycle k has the results of §11 (times from t_k) and these
+START_RESULTS = (
+    ("start_deflection", "rad", "dalpha(t_k) = alpha - alpha_w at the cycle's start"),
+    ("start_rate", "rad/s", "dalpha'(t_k) at the cycle's start"),
+    ("start_amplitude", "rad", "sqrt(dalpha(t_k)^2 + (dalpha'(t_k)/omega_n)^2), the residual_amplitude formula at t_k"),
+)
+STREAM_CYCLE_RESULTS = CYCLE_RESULTS + START_RESULTS
+#: MODEL.md §14: the results of the whole stream (results.stream_summary)
+STREAM_RESULTS = (
+    ("n_cycles", "-", "number of work cycles"),
+    ("n_scraped", "-", "cycles whose outcome is scraped"),
+    ("first_failure", "-", "index of the first cycle whose outcome is not scraped (-1 if none)"),
+    ("worst_overload", "-", "largest overload of the cycles"),
+    ("worst_deflection", "rad", "largest deflection_max of the cycles"),
+    ("worst_start_amplitude", "rad", "largest start_amplitude of the cycles"),
+    ("throughput", "1/h", "3600 / period: packages per hour"),
+)
 
-SCENE_RESULTS = {"cycle": CYCLE_RESULTS, "impact": IMPACT_RESULTS, "freefall": FREEFALL_RESULTS}
+SCENE_RESULTS = {"cycle": CYCLE_RESULTS, "impact": IMPACT_RESULTS, "freefall": FREEFALL_RESULTS,
+                 "stream": STREAM_CYCLE_RESULTS}
 
 #: index of each cycle result in the kernel's output vector
 RI = {name: i for i, (name, _, _) in enumerate(CYCLE_RESULTS)}
 #: index of each impact/freefall result in the kernel's output vector
 RJ = {name: i for i, (name, _, _) in enumerate(IMPACT_RESULTS)}
 N_CYCLE_RESULTS = len(CYCLE_RESULTS)
+N_STREAM_CYCLE_RESULTS = len(STREAM_CYCLE_RESULTS)
 # compile-time constants for the kernels: RC_<NAME> (cycle), RJ_<NAME> (impact, freefall)
-for _i, (_n, _u, _d) in enumerate(CYCLE_RESULTS):
+for _i, (_n, _u, _d) in enumerate(STREAM_CYCLE_RESULTS):
     globals()["RC_" + _n.upper()] = _i
 for _i, (_n, _u, _d) in enumerate(IMPACT_RESULTS):
     globals()["RJ_" + _n.upper()] = _i
 N_IMPACT_RESULTS = len(IMPACT_RESULTS)
 
 UNITS = {name: unit for rows in SCENE_RESULTS.values() for name, unit, _ in rows}
-_INT_RESULTS = {"n_impacts", "n_steps", "n_rejected"}
+UNITS.update({name: unit for name, unit, _ in STREAM_RESULTS})
+_INT_RESULTS = {"n_impacts", "n_steps", "n_rejected", "n_cycles", "n_scraped", "first_failure"}
 _BOOL_RESULTS = {"safe", "deflection_ok"}
 
 

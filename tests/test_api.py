@@ -4,7 +4,7 @@ import pandas as pd
 import pytest
 
 from fencesweep import api, resolve
-from fencesweep.scenes import cycle
+from fencesweep.scenes import cycle, stream
 
 pytestmark = pytest.mark.plain_python  # also run without Numba's JIT: tests/test_plain_python.py
 
@@ -16,10 +16,10 @@ def test_kernel_reports_the_rows_a_short_buffer_could_not_hold():
     p = prepare(resolve("cycle", "small_far"))
     out = np.empty(N_CYCLE_RESULTS)
     full = np.empty((100_000, len(cycle.TRAJ_COLUMNS)))
-    needed = cycle.cycle_kernel(p, out, full)
+    needed = stream.cycle_kernel(p, out, full)
     short = np.full((8, len(cycle.TRAJ_COLUMNS)), -7.0)
     assert needed > 8
-    assert cycle.cycle_kernel(p, out, short) == needed  # counts past the capacity ...
+    assert stream.cycle_kernel(p, out, short) == needed  # counts past the capacity ...
     np.testing.assert_array_equal(short, full[:8])  # ... and fills what fits
 
 
@@ -36,14 +36,14 @@ def test_short_trajectory_buffer_is_grown_not_cut(monkeypatch):
 
 
 def test_a_kernel_that_needs_more_rows_on_its_rerun_is_an_error(monkeypatch):
-    real = cycle.cycle_kernel
+    real = stream.cycle_kernel
     calls = []
 
     def growing(p, out, traj):  # a kernel whose second run needs more rows than its first
         calls.append(traj.shape[0])
         return real(p, out, traj) + len(calls)
 
-    monkeypatch.setattr(cycle, "cycle_kernel", growing)
+    monkeypatch.setattr(stream, "cycle_kernel", growing)
     monkeypatch.setattr(api, "TRAJECTORY_ROWS", 8)
     with pytest.raises(RuntimeError, match="not deterministic"):
         api.simulate_resolved(resolve("cycle", "small_far"), trajectory=True)

@@ -14,7 +14,8 @@ Integer work vector iw: the corners' sides sigma_j (§5.1), the code of each con
 (contacts.py: APART / PUSH / CLIPPED), the tip's edge, the fence mode, whether the load is
 on the belt and whether it rides the belt in closed form.
 
-The loop (`cycle_kernel`): choose the step -> take it (integrate.take_step; rejected when
+The kernel is scenes/stream.py's (a cycle is a stream of one): it calls `start`, then `run`,
+the step loop of this file, then `finish`. The loop (`run`): choose the step -> take it (integrate.take_step; rejected when
 its error estimate exceeds the tolerance) -> find the first event inside it on its dense
 output (a contact slot changing its code, a graze between two apart samples, the outcome
 of §9) and end the step there -> book-keep (stages, peaks located inside the step, the
@@ -25,7 +26,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 from numba import njit
 
 from .. import integrate as I
@@ -593,16 +593,24 @@ def try_ride(y, p, iw):
     return True
 
 
+@njit(cache=True, inline="always")
+def swing_amplitude(dev, rate, p, mode):
+    """Undamped amplitude [rad] of the fence's swing about its drive from the deflection dev =
+    alpha - alpha_w [rad] and its rate [rad/s] (MODEL.md §11 residual_amplitude, §14
+    start_amplitude): sqrt(dev^2 + (rate / omega_n)^2), omega_n = sqrt(K2 / I2); |dev| when
+    K2 = 0 or the fence follows its drive."""
+    if mode == FM_KELVIN and p[Lp.K2] > 0.0:
+        wn = math.sqrt(p[Lp.K2] / p[Lp.I2])
+        return math.sqrt(dev ** 2 + (rate / wn) ** 2)  # §11
+    return abs(dev)
+
+
 @njit(cache=True)
 def at_t_c(t, y, p, iw, acc):
     """Results read at t_c (MODEL.md §11): residual deflection and amplitude, damper energy."""
     al, dal, aw, daw = fence_state(t, y, p, iw[IW_MODE])
     acc[A_RESID] = abs(al - aw)
-    amp = acc[A_RESID]
-    if iw[IW_MODE] == FM_KELVIN and p[Lp.K2] > 0.0:
-        wn = math.sqrt(p[Lp.K2] / p[Lp.I2])
-        amp = math.sqrt((al - aw) ** 2 + ((dal - daw) / wn) ** 2)
-    acc[A_RESID_AMP] = amp
+    acc[A_RESID_AMP] = swing_amplitude(al - aw, dal - daw, p, iw[IW_MODE])
     acc[A_E_DAMPER] = y[8]
 
 
@@ -649,47 +657,6 @@ def after_step(t1, y1, p, iw, kind, codes1, edge1, acc):
     if iw[IW_MODE] == FM_KINEMATIC:
         y1[6], y1[7] = drive_angle(t1, p)
     return changed
-
-
-@njit(cache=True)
-def cycle_kernel(p, out, traj):
-    """Simulate one work cycle; write CYCLE_RESULTS into out and the time series into traj
-    (rows of TRAJ_COLUMNS, as many as fit). Returns the number of rows the run produced."""
-    n = N_STATE
-    y = np.empty(n)
-    y1 = np.empty(n)
-    tmp = np.empty(n)
-    dy = np.empty(n)
-    K = np.empty((I.N_STAGES, n))
-    Q = np.zeros((4, n))
-    aux = np.zeros(N_AUX)
-    iw = np.zeros(N_IW, np.int64)
-    codes1 = np.zeros(N_SLOTS, np.int64)
-    g0 = np.empty(N_SLOTS)
-    r0 = np.empty(N_SLOTS)
-    g1 = np.empty(N_SLOTS)
-    r1 = np.empty(N_SLOTS)
-    qv = np.zeros((5, N_Q))  # q0, q1, qa, qb, scratch
-    acc = np.empty(N_ACC)
-    atol = np.empty(N_STATE)
-    start(p, y, iw, acc, atol)
-    tags1 = np.zeros(N_SLOTS, np.int64)
-    iw[IW_EDGE] = classify(0.0, y, p, iw, codes1, g0, r0, tags1)
-    apply_contact_change(0.0, y, p, iw, codes1, iw[IW_EDGE], acc)
-    iw[IW_RIDE] = 1 if fence_free_of_load(iw) else 0
-    rhs(0.0, y, p, iw, K[0], aux)
-    quantities_from_aux(0.0, y, p, iw, aux, qv[0])
-    for k in range(N_Q):
-        acc[A_QMAX + k] = qv[0, k]
-    row = record(traj, 0, 0.0, y, p, iw, aux)
-    rising = np.ones(N_Q + 1)  # per quantity: rising at the step's start; last: judge it anew
-    Ks = np.empty((I.N_STAGES, n))  # a step to a located peak
-    ys = np.empty(n)
-    auxs = np.zeros(N_AUX)  # the peak search's own: aux keeps f(t1, y1)'s forces
-    row = run(p, y, y1, tmp, dy, K, Q, aux, auxs, iw, codes1, tags1, g0, r0, g1, r1, qv, acc, atol, rising, Ks,
-              ys, traj, row)
-    finish(p, y, iw, acc, out)
-    return row
 
 
 @njit(cache=True, inline="always")
