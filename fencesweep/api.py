@@ -14,11 +14,19 @@ from .results import N_CYCLE_RESULTS, N_IMPACT_RESULTS, unpack
 
 
 def simulate(scene: str = "cycle", case: str | None = None, **params: Any) -> dict:
-    """Simulate one scene; return the results of MODEL.md §11 (cycle) or §8 (impact, freefall).
+    """Simulate one scene; return the results of MODEL.md §11 (cycle), §8 (impact, freefall)
+    or §14 (stream).
 
     Parameters take the names and defaults of MODEL.md §12; `case` ('small_far' or
     'long_near') is applied first and explicit parameters override it. Bad input raises
     ParameterError (a ValueError) naming the parameter, the value and what is allowed.
+
+    `stream` (MODEL.md §14) also takes n_cycles, period [s] (>= t_c, default t_c) and loads:
+    None (every cycle has the scene's load) or one load per cycle, a pandas DataFrame with
+    columns among L, A, m1, dP, R_s, phi0 (or a list of named cases / mappings); what a row
+    does not give is the scene's. It returns the stream's results (results.STREAM_RESULTS)
+    and "cycles": a DataFrame with one row per cycle (results.STREAM_CYCLE_RESULTS, times
+    from the cycle's start; units in df.attrs["units"]).
     """
     vals = P.resolve(scene, case, **params)
     res, _ = simulate_resolved(vals)
@@ -43,6 +51,8 @@ def simulate_resolved(vals: dict, trajectory: bool = False):
 
     p = prepare(vals)
     scene = vals["scene"]
+    if scene == "stream":
+        return _stream(p, vals, trajectory)
     if scene == "cycle":
         from .scenes.cycle import TRAJ_COLUMNS, TRAJ_UNITS
         from .scenes.stream import cycle_kernel
@@ -73,3 +83,52 @@ def simulate_resolved(vals: dict, trajectory: bool = False):
     else:
         impact_kernel(p, vals["drive"] == "rigid", vals["drive"] == "free", vals["w"], out)
     return unpack(scene, out), None
+
+
+#: bytes per cycle of a stream held at once: the kernel's row and its load, the DataFrame of
+#: the cycles and the Python objects on the way (~40 per cycle), with a margin
+STREAM_BYTES_PER_CYCLE = 2048
+
+
+def check_stream_memory(n_cycles: int) -> None:
+    """A stream whose per-cycle results would not fit in the memory available is bad input."""
+    from .params import ParameterError
+    from .sweep import available_memory
+
+    avail = available_memory()
+    if avail is not None and n_cycles * STREAM_BYTES_PER_CYCLE > 0.5 * avail:
+        most = int(0.5 * avail // STREAM_BYTES_PER_CYCLE)
+        raise ParameterError(f"n_cycles = {n_cycles} is too large for the memory here: its per-cycle results need "
+                             f"about {n_cycles * STREAM_BYTES_PER_CYCLE / 2**30:.1f} GiB, over half the "
+                             f"{avail / 2**30:.1f} GiB available; n_cycles must be <= {most}")
+
+
+def _stream(p: np.ndarray, vals: dict, trajectory: bool):
+    """A stream (MODEL.md §14): (results dict with "cycles", trajectory DataFrame or None); the
+    trajectory has the columns of a cycle's plus `cycle`, t from the stream's start."""
+    from .results import N_STREAM_CYCLE_RESULTS, stream_results
+    from .scenes.cycle import TRAJ_COLUMNS, TRAJ_UNITS
+    from .scenes.stream import stream_kernel
+    from .setup import load_table
+
+    n = int(vals["n_cycles"])
+    check_stream_memory(n)
+    loads = load_table(vals)
+    out = np.empty((n, N_STREAM_CYCLE_RESULTS))
+    starts = np.empty(n + 1, np.int64)
+    traj = np.empty((TRAJECTORY_ROWS * n if trajectory else 0, len(TRAJ_COLUMNS)))
+    rows = stream_kernel(p, loads, float(vals["period"]), out, traj, starts)
+    res = stream_results(out, float(vals["period"]))
+    if not trajectory:
+        return res, None
+    if rows > traj.shape[0]:  # the buffer was too short: run again with the count it needed
+        traj = np.empty((rows, len(TRAJ_COLUMNS)))
+        if stream_kernel(p, loads, float(vals["period"]), out, traj, starts) > traj.shape[0]:
+            raise RuntimeError("the stream kernel produced more trajectory rows when rerun: it is not deterministic")
+    import pandas as pd
+
+    df = pd.DataFrame(traj[:rows], columns=list(TRAJ_COLUMNS))
+    df["stage"] = df["stage"].astype("int8")
+    df.insert(0, "cycle", np.repeat(np.arange(n, dtype=np.int64), np.diff(starts)))
+    df.attrs["units"] = dict(zip(("cycle",) + TRAJ_COLUMNS, ("-",) + TRAJ_UNITS))
+    return res, df

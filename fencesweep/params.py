@@ -15,7 +15,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-SCENES = ("cycle", "impact", "freefall")
+SCENES = ("cycle", "impact", "freefall", "stream")
 
 
 class ParameterError(ValueError):
@@ -50,6 +50,8 @@ class Param:
 
 
 _PI = math.pi
+#: most work cycles of one stream (MODEL.md §14): 1e6 cycles hold ~0.3 GB of per-cycle results
+MAX_CYCLES = 1_000_000
 
 #: MODEL.md §12, in its order. Units in brackets in the docs.
 TABLE: tuple[Param, ...] = (
@@ -91,6 +93,10 @@ TABLE: tuple[Param, ...] = (
     Param("eps_v", "m/s", 1e-3, "friction regularisation velocity", lo=0.0, hi=1.0, lo_open=True),
     Param("t_max", "s", None, "end of a cycle without outcome (derived: t_c + 1)", lo=0.0, hi=1000.0,
           lo_open=True, derived=True),
+    Param("n_cycles", "-", None, "stream scene: number of work cycles (derived: the number of loads, or 1)",
+          kind="int", lo=1, hi=MAX_CYCLES, derived=True),
+    Param("period", "s", None, "stream scene: time from one cycle's start to the next's, >= t_c (derived: t_c)",
+          lo=0.0, hi=1000.0, lo_open=True, derived=True),
     # --- engine settings (not physics; recorded in every result table) ---
     Param("step_factor", "-", 1.0, "scales the integrator's error tolerance as TOL x step_factor^5, so its "
           "steps scale about like step_factor (0.1 = steps ~10x shorter); with integrator = rk4 it "
@@ -117,8 +123,11 @@ SCENE_USES: dict[str, frozenset] = {
     "freefall": frozenset({"m1", "e", "k1", "contact_law", "k_lin", "H", "L", "A"}),
     "impact": frozenset({"m1", "e", "k1", "contact_law", "k_lin", "H", "l", "m2", "I2", "B2", "K2",
                          "drive", "R", "w", "L", "A"}),
-    "cycle": frozenset(set(NAMES) - {"R", "w"}),
+    "cycle": frozenset(set(NAMES) - {"R", "w", "n_cycles", "period"}),
+    "stream": frozenset(set(NAMES) - {"R", "w"}),
 }
+#: the parameters of one load of a stream (MODEL.md §14), the columns of a loads table
+LOAD_NAMES = ("L", "A", "m1", "dP", "R_s", "phi0")
 
 
 def defaults() -> dict[str, Any]:
@@ -159,12 +168,12 @@ def check_value(name: str, value: Any) -> Any:  # noqa: C901 (11 > 10: existing 
                 f"{name} = {value!r} ({type(value).__name__}) is not allowed: {name} must be {p.allowed()}"
             ) from None
     x = float(value)
-    if not math.isfinite(x):
+    if not math.isfinite(x) or (p.kind == "int" and not x.is_integer()):
         raise ParameterError(f"{name} = {value!r} is not allowed: {name} must be {p.allowed()}")
     ok_lo = x > p.lo if p.lo_open else x >= p.lo
     if not ok_lo or x > p.hi:
         raise ParameterError(f"{name} = {value!r} is out of range: {name} must be {p.allowed()}")
-    return x
+    return int(x) if p.kind == "int" else x
 
 
 def parse_value(name: str, text: str) -> Any:
@@ -183,12 +192,17 @@ def parse_value(name: str, text: str) -> Any:
     return check_value(name, x)
 
 
-def resolve(scene: str = "cycle", case: str | None = None, **overrides: Any) -> dict[str, Any]:
+def resolve(scene: str = "cycle", case: str | None = None, loads: Any = None,  # noqa: C901 (11)
+            **overrides: Any) -> dict[str, Any]:
     """Check and complete a parameter set: defaults < named case < explicit overrides.
 
-    Returns a dict with every name of TABLE (derived ones filled in) plus `scene` and `case`.
-    Raises ParameterError on anything wrong; nothing is computed then.
+    Returns a dict with every name of TABLE (derived ones filled in) plus `scene`, `case` and
+    `loads` (`stream` only: one load per cycle, see resolve_loads; None: the scene's load in
+    every cycle). Raises ParameterError on anything wrong; nothing is computed then.
     """
+    if loads is not None and scene != "stream":
+        raise ParameterError(f"loads = {_short(loads)} is not allowed with scene = {scene!r}: "
+                             f"a list of loads belongs to scene 'stream' only")
     if scene not in SCENES:
         raise ParameterError(f"scene = {scene!r} is not allowed: scene must be one of {', '.join(SCENES)}")
     if case is not None and case not in CASES:
@@ -210,11 +224,99 @@ def resolve(scene: str = "cycle", case: str | None = None, **overrides: Any) -> 
             f"coupler_ratio = {vals['coupler_ratio']!r} is not allowed with swing = {vals['swing']!r}: "
             f"the crank-rocker needs coupler_ratio > sin(swing/2) = {math.sin(vals['swing'] / 2):.6g}"
         )
-    if scene == "cycle":
+    if scene in ("cycle", "stream"):
         _check_start(vals)
+    vals["loads"] = None
+    if scene == "stream":
+        _check_stream(vals, loads)
+    if vals["n_cycles"] is None:
+        vals["n_cycles"] = 1
+    if vals["period"] is None:
+        vals["period"] = vals["t_c"]
     vals["scene"] = scene
     vals["case"] = case
     return vals
+
+
+def _short(x: Any) -> str:
+    text = repr(x)
+    return text if len(text) < 80 else text[:76] + " ..."
+
+
+def _check_stream(vals: dict[str, Any], loads: Any) -> None:
+    """MODEL.md §14: period >= t_c, a drive that stays connected, one load per cycle."""
+    if vals["drive"] == "free":
+        raise ParameterError("drive = 'free' is not allowed with scene = 'stream': the free fence is released at "
+                             "its first contact and never driven again (MODEL.md §14); drive must be 'flexible' "
+                             "or 'rigid'")
+    if vals["period"] is not None and vals["period"] < vals["t_c"]:
+        raise ParameterError(f"period = {vals['period']!r} is not allowed: a cycle's drive turns for t_c, so "
+                             f"period must be >= t_c = {vals['t_c']!r}")
+    if loads is None:
+        return
+    rows = resolve_loads(loads, vals)
+    if vals["n_cycles"] is not None and vals["n_cycles"] != len(rows):
+        raise ParameterError(f"loads has {len(rows)} rows and n_cycles = {vals['n_cycles']!r}: give one load per "
+                             f"cycle (or leave n_cycles out, it is then the number of loads)")
+    vals["n_cycles"] = len(rows)
+    vals["loads"] = rows
+
+
+def resolve_loads(loads: Any, vals: dict[str, Any]) -> tuple:
+    """A list of loads -> one tuple (L, A, m1, dP, R_s, phi0) per cycle (MODEL.md §14).
+
+    `loads` is a pandas DataFrame, or a list whose entries are a named case or a mapping, each
+    with columns / keys among LOAD_NAMES (and `case` in a mapping); what a row does not give is
+    the scene's (`vals`). Every load must start on the belt (MODEL.md §1)."""
+    if hasattr(loads, "to_dict") and hasattr(loads, "columns"):  # a pandas DataFrame
+        bad = [c for c in loads.columns if c not in LOAD_NAMES]
+        if bad:
+            raise ParameterError(f"loads has the unknown column {bad[0]!r}: the columns of a loads table are "
+                                 f"among {', '.join(LOAD_NAMES)}")
+        loads = loads.to_dict("records")
+    if isinstance(loads, (str, dict)) or not isinstance(loads, (list, tuple)) or not loads:
+        raise ParameterError(f"loads = {_short(loads)} is not allowed: loads must be a non-empty table or list, "
+                             f"one load per cycle (a named case, or a mapping of {', '.join(LOAD_NAMES)})")
+    if len(loads) > MAX_CYCLES:
+        raise ParameterError(f"loads has {len(loads)} rows: at most {MAX_CYCLES} cycles (n_cycles <= {MAX_CYCLES})")
+    return tuple(_load_row(k, entry, vals) for k, entry in enumerate(loads))
+
+
+def _load_row(k: int, entry: Any, vals: dict[str, Any]) -> tuple:
+    """Row k of a loads list, completed from the scene's values and checked (MODEL.md §1)."""
+    row = {n: vals[n] for n in LOAD_NAMES}
+    row.update(_load_entry(k, entry))
+    try:
+        _check_start(dict(vals, **row))
+    except ParameterError as exc:
+        raise ParameterError(f"loads[{k}]: {exc}") from None
+    return tuple(float(row[n]) for n in LOAD_NAMES)
+
+
+def _load_entry(k: int, entry: Any) -> dict[str, Any]:
+    """The load values that entry k of a loads list gives: a named case's, then its own, checked."""
+    if isinstance(entry, str):
+        entry = {"case": entry}
+    if not isinstance(entry, dict):
+        raise ParameterError(f"loads[{k}] = {_short(entry)} is not allowed: a load is a named case "
+                             f"({', '.join(CASES)}) or a mapping of {', '.join(LOAD_NAMES)}")
+    out = {}
+    if "case" in entry:
+        if entry["case"] not in CASES:
+            raise ParameterError(f"loads[{k}].case = {entry['case']!r} is not allowed: case must be one of "
+                                 f"{', '.join(CASES)}")
+        out.update(CASES[entry["case"]])
+    for name, value in entry.items():
+        if name == "case":
+            continue
+        if name not in LOAD_NAMES:
+            raise ParameterError(f"loads[{k}] has the unknown key {name!r}: a load's keys are among "
+                                 f"{', '.join(LOAD_NAMES)} (and case)")
+        try:
+            out[name] = check_value(name, value)
+        except ParameterError as exc:
+            raise ParameterError(f"loads[{k}]: {exc}") from None
+    return out
 
 
 def relative_damping(B2: float, K2: float, I2: float) -> float:
@@ -265,7 +367,7 @@ def model_key(vals: dict[str, Any]) -> tuple:
     """
     scene = vals["scene"]
     used = set(SCENE_USES[scene])
-    if scene == "cycle" and vals["drive"] == "rigid":
+    if scene in ("cycle", "stream") and vals["drive"] == "rigid":
         used -= {"B2", "K2"}
     if scene in ("cycle", "impact") and vals["drive"] == "free":
         used -= {"B2", "K2"}
@@ -278,7 +380,7 @@ def model_key(vals: dict[str, Any]) -> tuple:
     if "m2" in used and "I2" in used:
         used -= {"m2"}  # only I2 = m2 l^2/3 (or its override) enters the dynamics
     used.add("step_factor")
-    if scene == "cycle":
+    if scene in ("cycle", "stream"):
         used.add("integrator")
         if vals["integrator"] == "rk4":
             used.add("dt")
@@ -286,4 +388,5 @@ def model_key(vals: dict[str, Any]) -> tuple:
             used.discard("dt")
     else:
         used -= {"integrator", "dt"}
-    return (scene,) + tuple((n, vals[n]) for n in NAMES if n in used)
+    key = (scene,) + tuple((n, vals[n]) for n in NAMES if n in used)
+    return key + (("loads", vals["loads"]),) if vals.get("loads") is not None else key

@@ -129,3 +129,49 @@ def unpack(scene: str, vec: np.ndarray) -> dict:
         else:
             out[name] = x
     return out
+
+
+def unpack_cycles(out: np.ndarray) -> dict:
+    """A stream kernel's rows (STREAM_CYCLE_RESULTS, one per cycle) -> {name: list}."""
+    cols = {}
+    for i, (name, _, _) in enumerate(STREAM_CYCLE_RESULTS):
+        x = out[:, i]
+        if name == "outcome":
+            cols[name] = [OUTCOMES[int(v)] for v in x]
+        elif name == "status":
+            cols[name] = [STATUS_MESSAGES[int(v)] for v in x]
+        elif name in _INT_RESULTS:
+            cols[name] = [int(v) if math.isfinite(v) else 0 for v in x]
+        elif name in _BOOL_RESULTS:
+            cols[name] = [bool(v) if math.isfinite(v) else False for v in x]
+        else:
+            cols[name] = x.tolist()
+    return cols
+
+
+def stream_summary(cycles: dict, period: float) -> dict:
+    """The results of a stream (MODEL.md §14, STREAM_RESULTS) from its cycles' ({name: list})."""
+    outcomes = cycles["outcome"]
+    first = next((k for k, o in enumerate(outcomes) if o != "scraped"), -1)
+
+    def worst(name: str) -> float:
+        vals = [v for v in cycles[name] if not math.isnan(v)]
+        return max(vals) if vals else math.nan
+
+    return {"n_cycles": len(outcomes), "n_scraped": sum(o == "scraped" for o in outcomes), "first_failure": first,
+            "worst_overload": worst("overload"), "worst_deflection": worst("deflection_max"),
+            "worst_start_amplitude": worst("start_amplitude"), "throughput": 3600.0 / period}
+
+
+def stream_results(out: np.ndarray, period: float) -> dict:
+    """A stream kernel's rows -> the stream's results plus "cycles", a DataFrame with one row per
+    cycle (STREAM_CYCLE_RESULTS; units in df.attrs["units"])."""
+    import pandas as pd
+
+    cycles = unpack_cycles(out)
+    res = stream_summary(cycles, period)
+    df = pd.DataFrame(cycles)
+    df.index.name = "cycle"
+    df.attrs["units"] = {name: unit for name, unit, _ in STREAM_CYCLE_RESULTS}
+    res["cycles"] = df
+    return res

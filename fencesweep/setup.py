@@ -117,3 +117,20 @@ def _numerics(p: np.ndarray, vals: dict) -> None:
         period = min(period, 2 * math.pi * math.sqrt(vals["I2"] / vals["K2"]))
     p[Lp.H_MAX] = NU.H_MAX_PER_PERIOD * period
     p[Lp.SNAP] = NU.SNAP_SLIP * float(vals["eps_v"])
+
+
+def load_table(vals: dict) -> np.ndarray:
+    """The kernel's loads table of a stream (MODEL.md §14): one row per cycle, the entries of
+    the parameter vector that belong to that cycle's load (layout.LOAD_SLOTS), each distinct
+    load prepared once. Without a list of loads every cycle has the scene's load."""
+    from .params import LOAD_NAMES
+
+    slots = list(Lp.LOAD_SLOTS)
+    n = int(vals["n_cycles"])
+    if vals.get("loads") is None:
+        row = prepare(vals)[slots]
+        return np.tile(row, (n, 1))
+    rows = {}
+    for load in set(vals["loads"]):
+        rows[load] = prepare(dict(vals, **dict(zip(LOAD_NAMES, load))))[slots]
+    return np.array([rows[load] for load in vals["loads"]]).reshape(n, Lp.N_LOAD)

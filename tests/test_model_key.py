@@ -28,7 +28,7 @@ RANGES = {
     "B2": (0.0, 150.0), "K2": (0.0, 1500.0), "t_c": (1.0, 2.0), "swing": (0.65, 0.85),
     "coupler_ratio": (1.5, 4.0), "H": (0.1, 0.5), "dalpha_perm": (0.1, 0.5), "R": (0.5, 1.5),
     "w": (0.5, 3.0), "eps_v": (1e-4, 1e-2), "t_max": (1.5, 3.0), "step_factor": (0.5, 2.0),
-    "dt": (1e-4, 1e-3),
+    "dt": (1e-4, 1e-3), "n_cycles": (1, 2), "period": (1.0, 3.0),
 }
 RESTITUTIONS = (0.2, 0.5, 0.9)  # each new e costs a calibration of q(e) (~0.1 s)
 
@@ -45,6 +45,8 @@ def value(name: str):
         return st.sampled_from(p.choices)
     if name == "e":
         return st.sampled_from(RESTITUTIONS)
+    if p.kind == "int":  # n_cycles: streams of one or two cycles keep each run short
+        return st.one_of(st.none(), st.integers(*RANGES[name]))
     drawn = st.floats(*RANGES[name], allow_nan=False)
     return st.one_of(st.none(), drawn) if p.derived else drawn
 
@@ -64,7 +66,9 @@ def uses(scene: str, vals: dict, given: dict) -> set:
     if scene == "impact":  # §8: a point hitting the fence at R with speed w; drive at rest
         fence = set() if drive == "rigid" else inertia | ({"B2", "K2"} if drive == "flexible" else set())
         return law | bound | fence | {"R", "w", "step_factor"}
-    used = set(P.NAMES) - {"R", "w", "dt", "m2", "I2", "B2", "K2", "k_lin", "coupler_ratio"}
+    used = set(P.NAMES) - {"R", "w", "dt", "m2", "I2", "B2", "K2", "k_lin", "coupler_ratio", "n_cycles", "period"}
+    if scene == "stream":  # §14: the number of cycles and their period (throughput = 3600 / period)
+        used |= {"n_cycles", "period"}
     used |= law | {"l"}
     used |= set() if drive == "rigid" else inertia | ({"B2", "K2"} if drive == "flexible" else set())
     used |= {"coupler_ratio"} if vals["profile"] == "crank_rocker" else set()
@@ -73,11 +77,11 @@ def uses(scene: str, vals: dict, given: dict) -> set:
 
 
 def same(a: dict, b: dict) -> bool:
-    """Equal results, NaN equal to NaN."""
+    """Equal results, NaN equal to NaN (a stream's: its cycles' table too)."""
     def plain(r):
-        return {k: None if isinstance(v, float) and math.isnan(v) else v for k, v in r.items()}
+        return {k: None if isinstance(v, float) and math.isnan(v) else v for k, v in r.items() if k != "cycles"}
 
-    return plain(a) == plain(b)
+    return plain(a) == plain(b) and ("cycles" not in a or a["cycles"].equals(b["cycles"]))
 
 
 @pytest.mark.parametrize("name", [n for n in P.NAMES])
@@ -87,7 +91,7 @@ def same(a: dict, b: dict) -> bool:
 @given(data=st.data())
 def test_sets_that_differ_in_a_used_parameter_never_share_a_key(scene, name, data):
     given = {n: data.draw(value(n), label=n) for n in P.NAMES}
-    if scene == "cycle" and given["integrator"] == "rk4":
+    if scene in ("cycle", "stream") and given["integrator"] == "rk4":
         given["t_c"] = given["t_max"] = 1.0  # a fixed step of 1e-4 s over 1 s: 1e4 steps at most
     other = dict(given, **{name: data.draw(value(name), label=f"{name} (other)")})
     try:

@@ -598,9 +598,9 @@ def swing_amplitude(dev, rate, p, mode):
     """Undamped amplitude [rad] of the fence's swing about its drive from the deflection dev =
     alpha - alpha_w [rad] and its rate [rad/s] (MODEL.md §11 residual_amplitude, §14
     start_amplitude): sqrt(dev^2 + (rate / omega_n)^2), omega_n = sqrt(K2 / I2); |dev| when
-    K2 = 0 or the fence follows its drive."""
-    if mode == FM_KELVIN and p[Lp.K2] > 0.0:
-        wn = math.sqrt(p[Lp.K2] / p[Lp.I2])
+    K2 = 0 (or so small that omega_n underflows to 0) or the fence follows its drive."""
+    wn = math.sqrt(p[Lp.K2] / p[Lp.I2])
+    if mode == FM_KELVIN and wn > 0.0:
         return math.sqrt(dev ** 2 + (rate / wn) ** 2)  # §11
     return abs(dev)
 
