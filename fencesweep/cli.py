@@ -55,18 +55,26 @@ def cmd_run(args: argparse.Namespace) -> int:
     from .results import SCENE_RESULTS, UNITS
 
     overrides = _parse_sets(args.set)
-    vals = P.resolve(args.scene, args.case, **overrides)  # raises before anything runs
+    if args.loads is not None and args.scene != "stream":
+        raise UsageError("--loads is only available for --scene stream")
+    loads = _parse_loads(args.loads)
+    vals = P.resolve(args.scene, args.case, loads=loads, **overrides)  # raises before anything runs
     traj = None
     if args.trajectory:
-        if args.scene != "cycle":
-            raise UsageError("--trajectory is only available for --scene cycle")
+        if args.scene not in ("cycle", "stream"):
+            raise UsageError("--trajectory is only available for --scene cycle and --scene stream")
         if not args.trajectory.endswith(".parquet"):
             raise UsageError(f"--trajectory {args.trajectory!r} must end with .parquet")
     res, traj = api.simulate_resolved(vals, trajectory=bool(args.trajectory))
     if args.trajectory:
         from .store import write_trajectory
 
-        write_trajectory(traj, args.trajectory, vals, res)
+        summary = {k: v for k, v in res.items() if k != "cycles"}
+        write_trajectory(traj, args.trajectory, dict(vals, loads=None if loads is None else list(vals["loads"])),
+                         summary)
+    if args.scene == "stream":
+        _print_stream(args, res, traj)
+        return 0
     if args.json:
         print(json.dumps({k: _json_value(v) for k, v in res.items()}, allow_nan=False))
     else:
@@ -80,6 +88,51 @@ def cmd_run(args: argparse.Namespace) -> int:
         if args.trajectory:
             print(f"trajectory written to {args.trajectory} ({len(traj)} rows)")
     return 0
+
+
+def _parse_loads(text: str | None):
+    """--loads: named cases separated by commas (small_far,long_near,...) or a CSV file whose
+    columns are among params.LOAD_NAMES, one row per cycle."""
+    if text is None:
+        return None
+    if text.endswith(".csv"):
+        import pandas as pd
+
+        try:
+            return pd.read_csv(text)
+        except (OSError, ValueError) as exc:
+            raise UsageError(f"--loads {text!r}: cannot read it as a CSV table of loads ({exc})") from None
+    return [name.strip() for name in text.split(",")]
+
+
+#: the columns of a stream's per-cycle table on the terminal (all of them: --json)
+STREAM_COLUMNS = ("outcome", "t_exit", "overload", "deflection_max", "residual_amplitude", "start_deflection",
+                  "start_amplitude", "contact_time", "n_steps")
+
+
+def _print_stream(args: argparse.Namespace, res: dict, traj) -> None:
+    """A stream's results (MODEL.md §14): the summary and the per-cycle table, or one JSON object."""
+    from .results import STREAM_RESULTS, UNITS
+
+    cycles = res["cycles"]
+    if args.json:
+        out = {n: _json_value(res[n]) for n, _, _ in STREAM_RESULTS}
+        out["cycles"] = [{k: _json_value(v) for k, v in row.items()} for row in cycles.to_dict("records")]
+        print(json.dumps(out, allow_nan=False))
+        return
+    print("scene stream" + (f", case {args.case}" if args.case else ""))
+    width = max(len(n) for n, _, _ in STREAM_RESULTS)
+    for name, _, _ in STREAM_RESULTS:
+        unit = UNITS.get(name, "-")
+        print(f"  {name:<{width}}  {_fmt(res[name])}{'' if unit == '-' else ' ' + unit}")
+    heads = ["cycle"] + [f"{c} [{UNITS[c]}]" if UNITS[c] != "-" else c for c in STREAM_COLUMNS]
+    rows = [[str(k)] + [_fmt(row[c]) for c in STREAM_COLUMNS] for k, row in cycles.iterrows()]
+    widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(heads)]
+    print("  ".join(h.rjust(w) for h, w in zip(heads, widths)))
+    for r in rows:
+        print("  ".join(v.rjust(w) for v, w in zip(r, widths)))
+    if args.trajectory:
+        print(f"trajectory written to {args.trajectory} ({len(traj)} rows, {len(cycles)} cycles)")
 
 
 def add_grid_parser(sub) -> argparse.ArgumentParser:
@@ -199,7 +252,11 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                      help="override a parameter of MODEL.md §12 (repeatable)")
     run.add_argument("--json", action="store_true", help="print one JSON object (an undefined result, e.g. t_first_contact without contact, is null)")
-    run.add_argument("--trajectory", metavar="PATH.parquet", help="write the time series for plotting")
+    run.add_argument("--trajectory", metavar="PATH.parquet", help="write the time series for plotting "
+                     "(a stream's: the whole stream, with a cycle column)")
+    run.add_argument("--loads", metavar="CASES|FILE.csv", default=None,
+                     help="scene stream: one load per cycle, named cases separated by commas "
+                          "(small_far,long_near,...) or a CSV file with columns among L, A, m1, dP, R_s, phi0")
     run.set_defaults(func=cmd_run)
 
     from .plots import add_plot_parser  # matplotlib is imported only when a plot is drawn

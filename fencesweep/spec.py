@@ -31,7 +31,7 @@ DERIVED_INPUTS = {"Psi": ("-", "relative damping B2 / (2 sqrt(K2 I2)); fixes K2 
 INPUT_NAMES = P.NAMES + tuple(DERIVED_INPUTS)
 
 TOP_KEYS = ("scene", "case", "params", "grid", "zip", "cases", "output", "invalid", "chunk_size",
-            "description")
+            "description", "loads")
 AXIS_FORMS = ("linspace", "logspace", "range")
 INVALID_POLICIES = ("error", "skip")
 MAX_AXIS = 10_000_000
@@ -213,6 +213,7 @@ class Spec:
     description: str = ""
     source: str = ""
     path: str | None = None
+    loads: list | None = None  # scene stream: one load per cycle (params.resolve_loads), for every scene
     _shape: tuple = field(default=(), repr=False)
 
     def __post_init__(self):
@@ -267,7 +268,7 @@ class Spec:
     def resolve(self, i: int) -> dict:
         """Scene number -> the resolved parameter set of params.resolve (raises ParameterError)."""
         case, over = self.inputs(i)
-        return resolve_inputs(self.scene, case, over)
+        return resolve_inputs(self.scene, case, over, self.loads)
 
     # ---- identity ----------------------------------------------------------------------
     def normalized(self) -> dict:
@@ -281,7 +282,7 @@ class Spec:
             "cases": [{"case": c["case"], "params": dict(c["params"])} for c in self.cases],
             "invalid": self.invalid,
             "chunk_size": self.chunk_size,
-        }
+        } | ({"loads": self.loads} if self.loads is not None else {})
 
     @property
     def hash(self) -> str:
@@ -290,8 +291,10 @@ class Spec:
         return hashlib.sha256(text.encode()).hexdigest()
 
 
-def resolve_inputs(scene: str, case: str | None, over: dict) -> dict:
+def resolve_inputs(scene: str, case: str | None, over: dict, loads: list | None = None) -> dict:
     """params.resolve, plus the derived input Psi (MODEL.md §3): K2 = (B2 / (2 Psi))^2 / I2."""
+    if loads is not None:
+        over = dict(over, loads=loads)
     if "Psi" not in over:
         return P.resolve(scene, case, **over)
     over = dict(over)
@@ -451,7 +454,27 @@ def parse(data: Any, source: str = "", path: str | None = None) -> Spec:  # noqa
     if not isinstance(desc, str):
         raise SpecError(f"description = {desc!r}: expected text")
     return Spec(scene=scene, case=case, params=base, axes=axes, cases=cases, output=output,
-                invalid=invalid, chunk_size=chunk, description=desc, source=source, path=path)
+                invalid=invalid, chunk_size=chunk, description=desc, source=source, path=path,
+                loads=_loads(data.get("loads"), scene))
+
+
+def _loads(raw: Any, scene: str) -> list | None:
+    """The spec's `loads` (scene stream, MODEL.md §14): a list, one load per cycle, each a named
+    case or a mapping of the load's parameters; checked entry by entry here, against each
+    scene's parameters when the scenes are resolved."""
+    if raw is None:
+        return None
+    if scene != "stream":
+        raise SpecError(f"loads is given with scene = {scene!r}: a list of loads belongs to scene: stream only")
+    if not isinstance(raw, list) or not raw:
+        raise SpecError(f"loads = {raw!r}: expected a non-empty list, one load per cycle, each a named case "
+                        f"({', '.join(P.CASES)}) or a mapping of {', '.join(P.LOAD_NAMES)}")
+    try:
+        for k, entry in enumerate(raw):
+            P._load_entry(k, entry)
+    except P.ParameterError as exc:
+        raise SpecError(str(exc)) from None
+    return [dict(e) if isinstance(e, dict) else e for e in raw]
 
 
 def loads(text: str, path: str | None = None) -> Spec:

@@ -102,8 +102,36 @@ def result_type(name: str) -> pa.DataType:
     return pa.float64()
 
 
+#: a stream sweep's row is one cycle of one stream (MODEL.md §14): its index, then the cycle's
+#: results, then the results of its stream (n_cycles is a parameter column already)
+CYCLE_INDEX = ("cycle", "-", "index k of the work cycle in its stream (stream scene; it starts at t_k = k period)")
+STREAM_LEVEL = tuple(r for r in R.STREAM_RESULTS if r[0] != "n_cycles")
+
+
 def result_schema(scene: str) -> pa.Schema:
+    """The result columns of a chunk: one row per model run. A stream's run holds a list per
+    cycle result (its cycles in order) and its stream results."""
+    if scene == "stream":
+        return pa.schema([_field(n, pa.list_(result_type(n)), u, d, "result") for n, u, d in R.STREAM_CYCLE_RESULTS]
+                         + [_field(n, result_type(n), u, d, "result") for n, u, d in STREAM_LEVEL])
     return pa.schema([_field(n, result_type(n), u, d, "result") for n, u, d in R.SCENE_RESULTS[scene]])
+
+
+def table_result_fields(scene: str) -> list:
+    """The result columns of a sweep table (for `stream`: the cycle index, the cycle's results
+    and its stream's, one row per cycle)."""
+    if scene != "stream":
+        return list(result_schema(scene))
+    rows = (CYCLE_INDEX,) + R.STREAM_CYCLE_RESULTS + STREAM_LEVEL
+    return [_field(n, pa.int64() if n == "cycle" else result_type(n), u, d, "result") for n, u, d in rows]
+
+
+def stream_row(res: dict) -> dict:
+    """A stream's results (api: the stream's plus its "cycles" DataFrame) as one chunk row."""
+    cycles = res["cycles"]
+    row = {n: cycles[n].tolist() for n, _, _ in R.STREAM_CYCLE_RESULTS}
+    row.update({n: res[n] for n, _, _ in STREAM_LEVEL})
+    return row
 
 
 def param_columns() -> list:
@@ -136,7 +164,7 @@ def table_schema(scene: str, meta: dict | None = None) -> pa.Schema:
     fields += [_field(p.name, pa.string() if p.kind == "choice" else pa.float64(), p.unit, p.doc, "parameter")
                for p in P.TABLE]
     fields += [_field(n, pa.float64(), u, d, "parameter") for n, u, d in DERIVED]
-    fields += list(result_schema(scene))
+    fields += table_result_fields(scene)
     names = [f.name for f in fields]
     assert len(set(names)) == len(names), "a result shares a parameter's name"
     return pa.schema(fields, metadata=_meta_bytes(meta) if meta else None)
@@ -156,6 +184,33 @@ def failed_result(scene: str, reason: str) -> dict:
             out[name] = False
         else:
             out[name] = math.nan
+    if scene == "stream":  # one row, cycle 0, says why; the stream's results are undefined
+        out = {k: [v] for k, v in out.items()}
+        out.update({n: (-1 if n in _INT else math.nan) for n, _, _ in STREAM_LEVEL})
+        out["first_failure"] = 0
+    return out
+
+
+def explode_streams(cols: dict, n_params: int) -> dict:
+    """A block of stream runs ({column: values}, one entry per scene: its parameter columns
+    first, then the chunk's result columns) -> one entry per cycle: parameters and stream
+    results repeated, the cycle index and the cycle's results laid out (MODEL.md §14)."""
+    names = list(cols)
+    cycle_cols = {n for n, _, _ in R.STREAM_CYCLE_RESULTS}
+    counts = np.array([len(v) for v in cols["outcome"]], dtype=np.int64)
+    which = np.repeat(np.arange(len(counts)), counts)
+    out = {}
+    for name in names[:n_params]:
+        col = cols[name]
+        out[name] = col.take(pa.array(which)) if isinstance(col, (pa.Array, pa.ChunkedArray)) else \
+            np.asarray(col, dtype=object)[which]
+    out["cycle"] = np.concatenate([np.arange(c, dtype=np.int64) for c in counts]) if len(counts) else \
+        np.empty(0, np.int64)
+    for name in names[n_params:]:
+        if name in cycle_cols:
+            out[name] = np.concatenate([np.asarray(vs) for vs in cols[name]]) if len(counts) else []
+        else:
+            out[name] = np.asarray(cols[name])[which]
     return out
 
 

@@ -288,6 +288,8 @@ def run_models(scene: str, vals_list: list, simulate: Callable | None = None) ->
     for vals in vals_list:
         try:
             res, _ = fn(vals, trajectory=False)
+            if scene == "stream":
+                res = store.stream_row(res)
         except Exception as exc:  # recorded, never silent: status names the exception
             res = store.failed_result(scene, f"failed: exception {type(exc).__name__}: {exc}")
         rows.append(res)
@@ -759,6 +761,12 @@ def _block_params(plan: Plan, work: Path, block: int, rows: np.ndarray):
     return store.param_table(cols)
 
 
+def _table_rows(scene: str, cols: dict, n_params: int) -> dict:
+    """A block's columns, one entry per scene, as the table's rows: for `stream` one per cycle
+    (MODEL.md §14, store.explode_streams), for the other scenes the same."""
+    return store.explode_streams(cols, n_params) if scene == "stream" else cols
+
+
 def assemble(plan: Plan, work: Path, out: Path) -> int:
     """Write the table: rows in scene order, parameters from the planning pass, results from the chunks.
 
@@ -803,6 +811,7 @@ def assemble(plan: Plan, work: Path, out: Path) -> int:
                                        f"rerun with --no-resume")
                 for name, _ in rcols:
                     cols[name][sel] = data[name][local]
+            cols = _table_rows(spec.scene, cols, len(params.column_names))
             failed += int(sum(1 for s in cols["status"] if str(s).startswith("failed: exception")))
             writer.write(cols)
     return failed

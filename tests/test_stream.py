@@ -165,3 +165,67 @@ def test_a_failed_cycle_stops_the_stream():
     assert list(c.outcome) == ["failed"] * 3 and c.status[0].startswith("failed: penetration")
     assert list(c.status[1:]) == ["failed: not run, an earlier cycle of the stream failed"] * 2
     assert res["first_failure"] == 0 and math.isnan(c.overload[2])
+
+
+# ---------------------------------------------------------------- sweeps and the command line
+
+STREAM_SPEC = """
+scene: stream
+loads: [small_far, long_near]
+grid:
+  period: [1.36, 2.0]
+"""
+
+
+def test_a_stream_sweep_writes_one_row_per_cycle_with_its_stream_results(tmp_path):
+    from fencesweep import spec as S
+    from fencesweep import store, sweep
+
+    sweep.run_sweep(S.loads(STREAM_SPEC), tmp_path / "s.parquet", jobs=1, progress=False)
+    df = store.read_table(tmp_path / "s.parquet")
+    assert list(df.cycle) == [0, 1, 0, 1] and list(df.period) == [1.36, 1.36, 2.0, 2.0]
+    assert df.attrs["units"]["start_amplitude"] == "rad" and df.attrs["units"]["throughput"] == "1/h"
+    for period, rows in df.groupby("period"):
+        ref = simulate("stream", loads=["small_far", "long_near"], period=period)
+        for name, _, _ in STREAM_CYCLE_RESULTS:
+            assert [same_value(a, b) for a, b in zip(rows[name], ref["cycles"][name])] == [True, True], name
+        for name, _, _ in STREAM_RESULTS:
+            if name != "n_cycles":
+                assert (rows[name] == ref[name]).all(), name
+    streams = df[df.cycle == 0]  # the stream level: one row per stream (sweeps/README.md)
+    assert list(streams.throughput) == [3600 / 1.36, 3600 / 2.0]
+
+
+@pytest.mark.parametrize("text, words", [
+    ("scene: cycle\nloads: [small_far]\n", ["loads is given with scene = 'cycle'", "scene: stream only"]),
+    ("scene: stream\nloads: [small_far, {mass: 3}]\n", ["loads[1] has the unknown key 'mass'", "L, A, m1"]),
+    ("scene: stream\nloads: small_far\n", ["loads = 'small_far'", "non-empty list"]),
+])
+def test_a_bad_loads_list_in_a_spec_is_refused(text, words):
+    from fencesweep import spec as S
+
+    with pytest.raises(S.SpecError) as err:
+        S.loads(text)
+    for w in words:
+        assert w in str(err.value)
+
+
+def test_cli_prints_the_cycles_and_the_summary_and_writes_the_whole_series(tmp_path, capsys):
+    import json
+
+    from fencesweep import cli
+    from fencesweep.store import read_trajectory
+
+    path = tmp_path / "t.parquet"
+    assert cli.main(["run", "--scene", "stream", "--loads", "small_far,long_near", "--set", "period=2",
+                     "--trajectory", str(path)]) == 0
+    text = capsys.readouterr().out
+    assert "worst_start_amplitude" in text and "throughput" in text and "1800 1/h" in text
+    assert "start_amplitude [rad]" in text and len([ln for ln in text.splitlines() if " scraped " in ln]) == 2
+    traj = read_trajectory(path)
+    assert list(traj.cycle.unique()) == [0, 1] and traj.t.iloc[-1] > 2.0 and traj.attrs["results"]["n_cycles"] == 2
+    assert cli.main(["run", "--scene", "stream", "--case", "small_far", "--set", "n_cycles=2", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["n_cycles"] == 2 and len(out["cycles"]) == 2 and out["cycles"][1]["start_amplitude"] > 0
+    assert cli.main(["run", "--scene", "stream", "--set", "drive=free"]) == 2
+    assert "drive = 'free' is not allowed" in capsys.readouterr().err
