@@ -666,6 +666,47 @@ def recommended(res: Path, out: Path) -> Path:
     return _save(fig, out, "recommended.png")
 
 
+# ---------------------------------------------------------------------------- a stream of cycles
+#: the elements of sweeps/period.yaml that have a deflection (the rigid fence has none)
+STREAM_ELEMENTS = (("paper 72/570", dict(B2=72.0, K2=570.0), "#d62728", "-"),
+                   ("recommended 15/2075", dict(B2=15.0, K2=2075.0), "#1a9850", "-"),
+                   ("well-damped 140/2075", dict(B2=140.0, K2=2075.0), "#4575b4", "--"))
+STREAM_FIGURE_CYCLES = 10
+
+
+def stream(res: Path, out: Path) -> Path:
+    """Deflection over 10 back-to-back cycles (MODEL.md §14) at T = t_c, alternating loads."""
+    from .api import simulate_resolved
+    from .params import resolve
+
+    plt = _plt()
+    loads = ["small_far", "long_near"] * (STREAM_FIGURE_CYCLES // 2)
+    fig, axes = plt.subplots(2, 1, figsize=(13, 7.5), layout="constrained")
+    for ax, tc in zip(axes, (1.36, 1.0)):
+        for label, params, color, ls in STREAM_ELEMENTS:
+            r, df = simulate_resolved(resolve("stream", loads=loads, t_c=tc, period=tc, **params), trajectory=True)
+            amp = math.degrees(r["worst_start_amplitude"])
+            ax.plot(df["t"], np.degrees(df["alpha"] - df["alpha_w"]), color=color, ls=ls, lw=1.1,
+                    label=f"{label}\nworst overload {r['worst_overload']:.3f}\nlargest start amplitude {amp:.2f} deg\n"
+                          f"{r['n_scraped']}/{r['n_cycles']} scraped")
+        for k in range(STREAM_FIGURE_CYCLES + 1):
+            ax.axvline(k * tc, color="0.6", lw=0.6, ls=":")
+        for k in range(STREAM_FIGURE_CYCLES):
+            ax.text((k + 0.5) * tc, 0.03, "small_far" if k % 2 == 0 else "long_near",
+                    transform=ax.get_xaxis_transform(), ha="center", va="bottom", fontsize=7, color="0.35")
+        ax.axhline(0, color="k", lw=0.6)
+        ax.set_xlim(0, STREAM_FIGURE_CYCLES * tc)
+        ax.set_xlabel("time t [s] (dotted: the start of each cycle, t_k = k T)")
+        ax.set_ylabel("deflection alpha - alpha_w [deg]")
+        ax.set_title(f"t_c = T = {tc:g} s ({3600 / tc:.0f} packages/h), the load of each cycle at the bottom",
+                     fontsize=9)
+        ax.grid(alpha=0.3)
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7, frameon=False)
+    fig.suptitle(f"The fence over {STREAM_FIGURE_CYCLES} cycles back to back, the state of the element carried over "
+                 f"(scene stream), v = 2 m/s, m2 = 5 kg; the rigid fence has no deflection")
+    return _save(fig, out, "stream_deflection.png")
+
+
 # ---------------------------------------------------------------------------- one cycle in frames
 def _instants(df, n=8) -> list:
     """~n instants of a cycle as (t, label): start, A, the peak force, the middle of every long stage,
@@ -798,9 +839,10 @@ FIGURES = {
     "maps": (maps, "design maps over B2 x K2 (per case and both)"),
     "cycle": (cycle, "one cycle in frames, per case"),
     "recommended": (recommended, "the recommended element against the paper's 72/570"),
+    "stream": (stream, "deflection over 10 cycles back to back (scene stream), three elements"),
 }
 #: number of PNG files `plot all` writes
-N_FILES = 8 + 3 + 2 + 1
+N_FILES = 8 + 3 + 2 + 1 + 1
 
 
 def plot(names, res: Path = Path("results"), out: Path | None = None,

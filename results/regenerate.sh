@@ -23,8 +23,8 @@ export FENCESWEEP_REGEN_START="$(date +%s)"
 # 1. start from nothing (only what this script makes)
 rm -rf results/traj results/REPORT.md
 rm -f results/figures/fig[2-8]*.png results/figures/map_*.png results/figures/cycle_*.png \
-      results/figures/recommended.png   # its own figures only (benchmarks write there too)
-SPECS=(b2k2 psi_b2 fig5a fig5b freefall_H)   # fencesweep.report.TABLES
+      results/figures/recommended.png results/figures/stream_deflection.png   # its own figures only (benchmarks write there too)
+SPECS=(b2k2 psi_b2 fig5a fig5b freefall_H period)   # fencesweep.report.TABLES
 for spec in "${SPECS[@]}"; do rm -f "results/$spec.parquet"; done
 
 # 2. sweeps (one Parquet table each; sweeps/README.md)

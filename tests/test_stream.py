@@ -229,3 +229,12 @@ def test_cli_prints_the_cycles_and_the_summary_and_writes_the_whole_series(tmp_p
     assert out["n_cycles"] == 2 and len(out["cycles"]) == 2 and out["cycles"][1]["start_amplitude"] > 0
     assert cli.main(["run", "--scene", "stream", "--set", "drive=free"]) == 2
     assert "drive = 'free' is not allowed" in capsys.readouterr().err
+
+
+def test_the_shortest_safe_period_is_the_one_from_which_every_longer_period_is_safe():
+    from fencesweep.report import shortest_safe_period
+
+    g = pd.DataFrame({"period": [1.0, 1.1, 1.2, 1.3], "ok": [True, False, True, True]})
+    assert shortest_safe_period(g) == 1.2
+    assert shortest_safe_period(g.assign(ok=True)) == 1.0
+    assert math.isnan(shortest_safe_period(g.assign(ok=[True, True, True, False])))

@@ -1,0 +1,98 @@
+"""Cost of a stream per cycle against the cycle scene (MODEL.md §14, issue 9: "a stream costs
+about n_cycles cycles").
+
+    python benchmarks/stream_cost.py      -> prints a table, writes results/stream_cost.md
+
+Both scenes run the one compiled kernel (scenes/stream.py). Warm CPU time (time.process_time),
+the median of REPEATS repeats, the two measurements of a row interleaved: the two named cases
+as `cycle` runs (each RUNS times), and a stream of N_CYCLES cycles of alternating small_far /
+long_near loads (RUNS / N_CYCLES times), at T = t_c and at T = 2 t_c (where the fence rests
+alone for t_c after each cycle: the steps of that rest are the stream's extra cost). Per cycle:
+the stream's time over N_CYCLES, against the mean of the two cycles' times.
+"""
+from __future__ import annotations
+
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+N_CYCLES = 20
+RUNS = 200
+REPEATS = 7
+ELEMENTS = {"72/570 (paper)": dict(B2=72.0, K2=570.0), "15/2075 (maps' recommendation)": dict(B2=15.0, K2=2075.0),
+            "rigid": dict(drive="rigid")}
+
+
+def _kernels(params: dict, ratio: float):
+    from fencesweep import resolve
+    from fencesweep.results import N_CYCLE_RESULTS, N_STREAM_CYCLE_RESULTS
+    from fencesweep.scenes.cycle import TRAJ_COLUMNS
+    from fencesweep.scenes.stream import cycle_kernel, stream_kernel
+    from fencesweep.setup import load_table, prepare
+
+    traj = np.empty((0, len(TRAJ_COLUMNS)))
+    cycles = []
+    for case in ("small_far", "long_near"):
+        p = prepare(resolve("cycle", case, **params))
+        out = np.empty(N_CYCLE_RESULTS)
+        cycles.append(lambda p=p, out=out: cycle_kernel(p, out, traj))
+    vals = resolve("stream", loads=["small_far", "long_near"] * (N_CYCLES // 2), **params)
+    period = ratio * vals["t_c"]
+    vals = resolve("stream", loads=["small_far", "long_near"] * (N_CYCLES // 2), period=period, **params)
+    p, loads = prepare(vals), load_table(vals)
+    out = np.empty((N_CYCLES, N_STREAM_CYCLE_RESULTS))
+    starts = np.empty(N_CYCLES + 1, np.int64)
+    return cycles, (lambda: stream_kernel(p, loads, period, out, traj, starts)), out
+
+
+def _time(fn, n: int) -> float:
+    t = time.process_time()
+    for _ in range(n):
+        fn()
+    return (time.process_time() - t) / n
+
+
+def measure(params: dict, ratio: float) -> dict:
+    from fencesweep.results import RI
+
+    cycles, stream, out = _kernels(params, ratio)
+    for f in cycles + [stream]:
+        f()  # compile / load
+    c_ms, s_ms = [], []
+    for _ in range(REPEATS):  # interleaved: a load on the machine hits both alike
+        c_ms.append(0.5 * sum(_time(f, RUNS) for f in cycles) * 1e3)
+        s_ms.append(_time(stream, RUNS // N_CYCLES) * 1e3)
+    steps = out[:, RI["n_steps"]].sum() + out[:, RI["n_rejected"]].sum()
+    return {"cycle_ms": statistics.median(c_ms), "stream_ms": statistics.median(s_ms), "steps_per_cycle": steps / N_CYCLES}
+
+
+def main() -> None:
+    import fencesweep
+
+    rows = []
+    for name, params in ELEMENTS.items():
+        for ratio in (1.0, 2.0):
+            m = measure(params, ratio)
+            per = m["stream_ms"] / N_CYCLES
+            rows.append(f"| {name} | {ratio:g} t_c | {m['cycle_ms']:.3f} | {m['stream_ms']:.2f} | {per:.3f} | "
+                        f"{per / m['cycle_ms']:.2f} | {m['steps_per_cycle']:.0f} |")
+            print(rows[-1], flush=True)
+    head = ["# Cost of a stream per cycle (benchmarks/stream_cost.py)", "",
+            f"fencesweep {fencesweep.__version__}, {sys.platform}; warm CPU time, median of {REPEATS} interleaved "
+            f"repeats; cycle: mean of small_far and long_near, {RUNS} runs each; stream: {N_CYCLES} cycles of "
+            f"alternating small_far / long_near, {RUNS // N_CYCLES} runs; t_c = 1.36 s, v = 2 m/s. Steps per "
+            f"cycle: accepted + rejected, the stream's rest to the next start included.", "",
+            "| element | period T | cycle [ms] | stream of 20 [ms] | stream per cycle [ms] | per cycle / cycle | "
+            "steps per cycle |",
+            "|---|---|---|---|---|---|---|"]
+    text = "\n".join(head + rows) + "\n"
+    (ROOT / "results" / "stream_cost.md").write_text(text)
+    print("wrote results/stream_cost.md")
+
+
+if __name__ == "__main__":
+    main()
