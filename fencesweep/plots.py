@@ -498,7 +498,7 @@ def _map_case(res: Path, out: Path, case: str, D) -> Path:
         (axes[0, 0], "overload", "overload = peak force / free-fall peak [-]", "viridis", None, [1.0]),
         (axes[0, 1], "deflection_max_deg", "maximal deflection |alpha - alpha_w| [deg]", "magma_r", None,
          [math.degrees(perm)]),
-        (axes[1, 0], "residual_deg", "residual deflection at t_c [deg] (log scale)", "cividis_r",
+        (axes[1, 0], "residual_deg", "residual amplitude at t_c [deg] (log scale)", "cividis_r",
          LogNorm(vmin=max(0.01, float(np.nanmin(g["residual_deg"]))), vmax=float(np.nanmax(g["residual_deg"]))),
          sorted({0.5, D.residual_max_deg, 2.0})),
     ]
@@ -520,7 +520,7 @@ def _map_case(res: Path, out: Path, case: str, D) -> Path:
                 cb.ax.axhline(v, color="w", lw=1.5)
     axes[0, 0].set_title("overload (contour: 1 = a drop from H = 0.3 m)")
     axes[0, 1].set_title(f"deflection_max (contour: dalpha_perm = {math.degrees(perm):.0f} deg)")
-    axes[1, 0].set_title(f"residual_deflection at t_c (contours 0.5 / {D.residual_max_deg:g} / 2 deg)")
+    axes[1, 0].set_title(f"residual_amplitude at t_c (contours 0.5 / {D.residual_max_deg:g} / 2 deg)")
     ax = axes[1, 1]
     names = list(OUTCOME_COLORS)
     code = np.vectorize(lambda s: names.index(s) if s in names else 3)(g["outcome"])
@@ -579,7 +579,7 @@ def _map_both(res: Path, out: Path, D) -> Path:
     ax.set_title("first constraint that fails (either case), in the order listed")
     present = sorted(set(np.unique(D.first_fail).tolist()))
     handles = [Patch(color=colors[k], label=RP.Design.FAIL_NAMES[k] if k != 4 else
-                     f"residual deflection > {D.residual_max_deg:g} deg") for k in present]
+                     f"residual amplitude > {D.residual_max_deg:g} deg") for k in present]
     handles += [Line2D([], [], ls="", marker="o", mfc="white", mec="k", label="paper's element 72/570"),
                 Line2D([], [], ls="", marker="*", ms=11, mfc="gold", mec="k", label="recommended"),
                 Line2D([], [], color="0.25", ls="--", label="Psi = 1")]
@@ -630,7 +630,7 @@ def recommended(res: Path, out: Path) -> Path:
             from .params import relative_damping
 
             label = (f"{what}: B2 = {p['B2']:g}, K2 = {p['K2']:g} (Psi = {relative_damping(p['B2'], p['K2'], p['I2']):.2f})"
-                     f"; overload {rs['overload']:.3f}, residual {math.degrees(rs['residual_deflection']):.2f} deg")
+                     f"; overload {rs['overload']:.3f}, residual amplitude {math.degrees(rs['residual_amplitude']):.2f} deg")
             t = df["t"].to_numpy()
             axes[r, 0].plot(t, np.degrees(df["alpha"] - df["alpha_w"]), color=color, ls=ls, lw=1.4, label=label)
             axes[r, 1].plot(t, df["N_fence"] / rs["freefall_force"], color=color, ls=ls, lw=1.3)
@@ -644,7 +644,7 @@ def recommended(res: Path, out: Path) -> Path:
         ax.set_ylabel("deflection alpha - alpha_w [deg]")
         ax.set_xlabel("time t [s]")
         ax.set_title(f"{RP.CASE_TEXT[case]}\ndeflection (dotted: +-{RP.RESIDUAL_MAX_DEG:g} deg, the 'home' "
-                     f"threshold; dalpha_perm = {perm:.0f} deg)", fontsize=9)
+                     f"threshold on the residual amplitude; dalpha_perm = {perm:.0f} deg)", fontsize=9)
         ax.grid(alpha=0.3)
         ax.legend(loc="upper left", bbox_to_anchor=(0.0, -0.2), fontsize=8, ncol=1, frameon=False)
         ax = axes[r, 1]
@@ -874,7 +874,7 @@ def add_plot_parser(sub) -> argparse.ArgumentParser:
                    help="directory of the tables and trajectories (default: results)")
     g.add_argument("--out", default=None, metavar="DIR", help="where the PNGs go (default: RESULTS/figures)")
     g.add_argument("--residual-max", type=float, default=RP.RESIDUAL_MAX_DEG, metavar="DEG",
-                   help=f"residual deflection [deg] under which the fence counts as home for the next cycle "
+                   help=f"residual amplitude [deg] under which the fence counts as home for the next cycle "
                         f"(design maps, report; default {RP.RESIDUAL_MAX_DEG:g})")
     g.set_defaults(func=cmd_plot)
     return g

@@ -56,11 +56,13 @@ CASE_TEXT = {"small_far": "small_far: 0.2 x 0.1 m load, 0.6 m from the rail",
              "long_near": "long_near: 0.7 x 0.1 m load against the rail"}
 STAGE_NAMES = {0: "S1", 1: "S2", 2: "S3", 3: "S4", 4: "rail", -1: "exit"}
 
-#: default threshold of the "fence is home" constraint on residual_deflection (see REASON)
+#: default threshold of the "fence is home" constraint on residual_amplitude (see REASON)
 RESIDUAL_MAX_DEG = 1.0
 RESIDUAL_REASON = (
-    "The next cycle starts from the rest position the model assumes (alpha = 0 at t = 0), and its "
-    "deflection adds to whatever is left of this one. 1 deg is 1/15 of the permitted deflection "
+    "A cycle starts from the rest position the model assumes (alpha = 0 at t = 0), and the next one's "
+    "deflection adds to whatever swing is left of this one; residual_amplitude (MODEL.md §11) is that swing's "
+    "undamped amplitude, deflection and rate at t_c together (a snapshot of the deflection alone can catch a "
+    "ringing fence at its zero crossing). 1 deg is 1/15 of the permitted deflection "
     "(15 deg), so the leftover eats at most 7 % of the next cycle's deflection budget, and it moves "
     "the fence tip (l = 1.2 m) 21 mm off the rail line, a fifth of the narrowest load side "
     "(A = 0.1 m); a near-rail load then meets a ramp of at most 1 deg, not a step."
@@ -235,7 +237,7 @@ class Design:
     damped: dict | None       # ... among robust cells with 0.7 <= Psi <= 1 (paper §4.2)
 
     FAIL_NAMES = ("every constraint kept", "not scraped", "overload > 1",
-                  "deflection_max > dalpha_perm", "residual deflection too large")
+                  "deflection_max > dalpha_perm", "residual amplitude too large")
 
 
 def _pivot(d, col):
@@ -247,7 +249,8 @@ def design(df, residual_max_deg: float = RESIDUAL_MAX_DEG) -> Design:
 
     Constraints (every one must hold for a cell to be feasible): outcome scraped,
     overload <= 1 (`safe`), deflection_max <= dalpha_perm (`deflection_ok`), and
-    residual_deflection <= residual_max_deg. The recommendation minimises the larger of the
+    residual_amplitude <= residual_max_deg (residual_deflection in a table without it). The
+    recommendation minimises the larger of the
     two cases' overloads over the cells that are feasible together with their 8 neighbours
     (a tolerance of one grid step on B2 and K2, and nothing read off the grid's edge).
     """
@@ -259,14 +262,14 @@ def design(df, residual_max_deg: float = RESIDUAL_MAX_DEG) -> Design:
         d = df[df["case"] == c]
         g = {}
         for col in ("overload", "deflection_max", "residual_deflection", "Psi", "dalpha_perm",
-                    "damper_energy", "x_exit", "contact_time"):
-            g[col] = _pivot(d, col).to_numpy(dtype=float)
+                    "damper_energy", "x_exit", "contact_time", "residual_amplitude"):
+            g[col] = _pivot(d, col if col in d else "residual_deflection").to_numpy(dtype=float)
         out = _pivot(d, "outcome")
         B2 = out.columns.to_numpy(dtype=float)
         K2 = out.index.to_numpy(dtype=float)
         g["outcome"] = out.to_numpy(dtype=object)
         g["deflection_max_deg"] = np.degrees(g["deflection_max"])
-        g["residual_deg"] = np.degrees(g["residual_deflection"])
+        g["residual_deg"] = np.degrees(g["residual_amplitude"])  # the "home" criterion (RESIDUAL_REASON)
         scraped = g["outcome"] == "scraped"
         safe = g["overload"] <= 1.0
         defl = g["deflection_max"] <= g["dalpha_perm"]
@@ -565,7 +568,7 @@ def write_report(res: Path = Path("results"), residual_max_deg: float = RESIDUAL
     w("1. the load is scraped (outcome = scraped);")
     w("2. overload <= 1 (peak fence force no more than a drop from H = 0.3 m);")
     w("3. deflection_max <= dalpha_perm = 15 deg;")
-    w(f"4. **residual_deflection <= {residual_max_deg:g} deg** (the fence is home for the next cycle). "
+    w(f"4. **residual_amplitude <= {residual_max_deg:g} deg** (the fence is home for the next cycle). "
       + (RESIDUAL_REASON if residual_max_deg == RESIDUAL_MAX_DEG else
          f"(Threshold set with --residual-max; the default {RESIDUAL_MAX_DEG:g} deg and its reason are in the "
          "report written without that option.)"))
@@ -589,9 +592,9 @@ def write_report(res: Path = Path("results"), residual_max_deg: float = RESIDUAL
           f"the lowest larger-of-the-two overload, {b['worst_overload']:.3f}, among the cells that keep every "
           f"constraint for both cases together with all 8 neighbours (so +-{D.B2[1] - D.B2[0]:g} N m s/rad and "
           f"+-{D.K2[1] - D.K2[0]:g} N m/rad of tolerance on the element keep them too). There: small_far overload "
-          f"{b['small_far.overload']:.3f}, deflection_max {b['small_far.deflection_max_deg']:.1f} deg, residual "
+          f"{b['small_far.overload']:.3f}, deflection_max {b['small_far.deflection_max_deg']:.1f} deg, residual amplitude "
           f"{b['small_far.residual_deg']:.2f} deg; long_near overload {b['long_near.overload']:.3f}, deflection_max "
-          f"{b['long_near.deflection_max_deg']:.1f} deg, residual {b['long_near.residual_deg']:.2f} deg.")
+          f"{b['long_near.deflection_max_deg']:.1f} deg, residual amplitude {b['long_near.residual_deg']:.2f} deg.")
         w("")
         notes = []
         if braw and (braw["B2"], braw["K2"]) != (b["B2"], b["K2"]):
@@ -600,7 +603,7 @@ def write_report(res: Path = Path("results"), residual_max_deg: float = RESIDUAL
                          "of the feasible region or of the grid, and we do not recommend it.")
         if b["K2"] >= D.K2[-2]:
             notes.append(f"The choice sits one step inside the grid's upper K2 bound ({D.K2.max():g} N m/rad): "
-                         "the residual-deflection constraint pushes towards stiff elements, and a wider K2 range "
+                         "the residual-amplitude constraint pushes towards stiff elements, and a wider K2 range "
                          "may hold a slightly lower overload (a stiffer element tends back to the rigid fence, so "
                          "not much lower).")
         if bd:
@@ -625,13 +628,15 @@ def write_report(res: Path = Path("results"), residual_max_deg: float = RESIDUAL
                 rows.append(f"| {what} | {pr['B2']:g} / {pr['K2']:g} | {P.relative_damping(pr['B2'], pr['K2'], pr['I2']):.2f} "
                             f"| {c} | {rr['outcome']} | {rr['overload']:.3f} | {math.degrees(rr['deflection_max']):.1f} | "
                             f"{lo:+.1f} / {hi:+.1f} | {math.degrees(rr['residual_deflection']):.2f} | "
+                            f"{math.degrees(rr['residual_amplitude']):.2f} | "
                             f"{math.degrees(float(df['alpha_dot'].iloc[-1])):.1f} | {rr['contact_time']:.3f} | {rr['x_exit']:.3f} |")
         if rows:
             w("The three elements run as single cycles (`recommended.png`):")
             w("")
             w("| element | B2 / K2 | Psi | case | outcome | overload | deflection_max [deg] | deflection after "
-              "the exit, min / max [deg] | residual at t_c [deg] | fence rate at t_c [deg/s] | contact [s] | x_exit [m] |")
-            w("|---|---|---|---|---|---|---|---|---|---|---|---|")
+              "the exit, min / max [deg] | residual deflection at t_c [deg] | residual amplitude [deg] | "
+              "fence rate at t_c [deg/s] | contact [s] | x_exit [m] |")
+            w("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
             for r_ in rows:
                 w(r_)
             w("")
@@ -651,9 +656,9 @@ def write_report(res: Path = Path("results"), residual_max_deg: float = RESIDUAL
         w("")
     # the paper's own element
     rp = {c: R[f"{c}_flexible"] for c in CASES}
-    why = [f"{c}: residual {math.degrees(rp[c]['residual_deflection']):.2f} deg" for c in CASES
-           if math.degrees(rp[c]["residual_deflection"]) > residual_max_deg]
-    res_p = {c: math.degrees(rp[c]["residual_deflection"]) for c in CASES}
+    why = [f"{c}: residual amplitude {math.degrees(rp[c]['residual_amplitude']):.2f} deg" for c in CASES
+           if math.degrees(rp[c]["residual_amplitude"]) > residual_max_deg]
+    res_p = {c: math.degrees(rp[c]["residual_amplitude"]) for c in CASES}
     other = [f"{c}: {what}" for c in CASES for what, bad in (
         ("not scraped", rp[c]["outcome"] != "scraped"), ("overload > 1", rp[c]["overload"] > 1.0),
         ("deflection_max > dalpha_perm", rp[c]["deflection_max"] > T[f"{c}_flexible"].attrs["params"]["dalpha_perm"]))
@@ -661,16 +666,17 @@ def write_report(res: Path = Path("results"), residual_max_deg: float = RESIDUAL
     w(f"The paper's element 72/570 (exact run, not a grid cell): overload small_far {rp['small_far']['overload']:.3f}, "
       f"long_near {rp['long_near']['overload']:.3f}; deflection_max "
       f"{math.degrees(rp['small_far']['deflection_max']):.1f} / {math.degrees(rp['long_near']['deflection_max']):.1f} "
-      f"deg; residual {res_p['small_far']:.2f} / {res_p['long_near']:.2f} deg; outcomes "
+      f"deg; residual amplitude {res_p['small_far']:.2f} / {res_p['long_near']:.2f} deg; outcomes "
       f"{rp['small_far']['outcome']} / {rp['long_near']['outcome']}. "
       + ("It keeps every constraint." if not why and not other else
          (f"It fails {'; '.join(other + why)}. " if other else
-          f"It fails only the residual-deflection constraint ({'; '.join(why)}): the paper asks that the fence "
-          "start each cycle in its neutral position but gives no number, and with this element the fence is "
-          f"still lagging its drive by {max(res_p.values()):.2f} deg at t_c; it would pass a threshold of "
+          f"It fails only the residual-amplitude constraint ({'; '.join(why)}): the paper asks that the fence "
+          "start each cycle in its neutral position but gives no number, and with this element the fence still "
+          f"swings about its drive with an amplitude of {max(res_p.values()):.2f} deg at t_c; it would pass a "
+          "threshold of "
           f"{math.ceil(max(res_p.values()) * 2) / 2:g} deg.")))
     w("")
-    w("How the choice depends on the residual threshold (same rule):")
+    w("How the choice depends on the residual-amplitude threshold (same rule):")
     w("")
     w("| residual threshold | feasible cells, both cases | recommended B2, K2 | worst overload | well-damped (0.7 <= Psi <= 1) |")
     w("|---|---|---|---|---|")
@@ -696,9 +702,10 @@ def write_report(res: Path = Path("results"), residual_max_deg: float = RESIDUAL
           "§4.1). The element decides whether the load is scraped (too soft and too little damped: escaped) and "
           f"whether the fence is home at t_c: the {residual_max_deg:g} deg boundary needs K2 >= "
           + ", ".join(f"{kb[x]:g} at B2 = {x:g}" for x in kb) + " N m/rad. Those two shape the feasible region; "
-          "long_near's overload (about 0.2) never binds. For a well-damped element the residual at t_c is the same "
-          "for both loads (1.61 deg for 72/570): it is the element's lag behind the drive's return stroke, not "
-          "an after-effect of the load, so it is a property of B2, K2 and the drive alone.")
+          "long_near's overload (about 0.2) never binds. For a well-damped element the residual amplitude at t_c "
+          f"is the same for both loads ({res_p['small_far']:.2f} / {res_p['long_near']:.2f} deg for 72/570): it is "
+          "the element's lag behind the drive's return stroke, not an after-effect of the load, so it is a "
+          "property of B2, K2 and the drive alone.")
         w("")
 
     # ------------------------------------------------------------------ figures
@@ -717,7 +724,7 @@ def write_report(res: Path = Path("results"), residual_max_deg: float = RESIDUAL
         ("fig7_fence_response.png", "paper Fig. 7: alpha and alpha_w against time, A, B, C marked, and the "
          "deflection alpha - alpha_w"),
         ("fig8_load_path.png", "paper Fig. 8: path of the load's centroid, rigid vs flexible fence, both cases"),
-        ("map_small_far.png", "design maps, small_far: overload, deflection_max, residual deflection, outcome"),
+        ("map_small_far.png", "design maps, small_far: overload, deflection_max, residual amplitude, outcome"),
         ("map_long_near.png", "design maps, long_near"),
         ("map_both.png", "both cases: worst overload over the feasible region, the first constraint that fails, "
          "the recommendation"),
@@ -768,10 +775,9 @@ def write_report(res: Path = Path("results"), residual_max_deg: float = RESIDUAL
     w("* The free fence of Fig. 5a is released at the first contact (MODEL.md §3); it is an idealisation for "
       "the impact, and the loads it touches are not all scraped (marked x in Fig. 5a).")
     w("* `residual_deflection` is |alpha - alpha_w| at t_c, one snapshot: for a lightly damped element it can be "
-      "small by the phase of a swing that has not died out. The engine now gives `residual_amplitude` "
-      "(deflection and rate at t_c combined, MODEL.md §11), the sturdier criterion, but the maps above still "
-      "judge by the snapshot; section 6 answers the question the criterion stands for directly, by running "
-      "the cycles back to back.")
+      "small by the phase of a swing that has not died out. The maps therefore judge \"home\" by "
+      "`residual_amplitude` (deflection and rate at t_c combined, MODEL.md §11); section 6 answers the question "
+      "the criterion stands for directly, by running the cycles back to back.")
     w("")
     if table_path(res, "period").exists():
         L += stream_section(read_table(res, "period"))
@@ -815,7 +821,7 @@ def stream_section(df) -> list[str]:
     """Section 6 of the report: consecutive cycles (scene stream, sweeps/period.yaml)."""
     S = stream_safety(df)
     n = int(S["n_cycles"].iloc[0])
-    L = ["", "## 6. Consecutive cycles: how short may the period be? (scene `stream`, MODEL.md §14)", "",
+    L = ["## 6. Consecutive cycles: how short may the period be? (scene `stream`, MODEL.md §14)", "",
          f"Table `period.parquet` (`sweeps/period.yaml`): streams of {n} work cycles, small_far and long_near "
          "alternating, each cycle starting with the fence's state that the one before left (nothing is reset), "
          "the drive resting between cycles; the period T from t_c to 2 t_c in steps of "
