@@ -46,6 +46,7 @@ fencesweep plot report --results results
 if [[ "$BENCHMARKS" == 1 ]]; then
   python benchmarks/work_precision.py
   python benchmarks/throughput.py
+  python benchmarks/stream_cost.py   # a stream's cost per cycle against a cycle -> results/stream_cost.md
   if python -c "import numbalsoda" 2>/dev/null; then
     python benchmarks/lsoda_peer.py   # the named cases beside compiled LSODA -> results/lsoda_peer.md
   else
