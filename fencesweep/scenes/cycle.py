@@ -221,6 +221,14 @@ def slot_eval(k, y, p, iw, ca, sa, dal, cphi, sphi):
     return next_code(cur, D, Dd, True, kc, cd, law, d_gap, d_force), edge, gap, rate
 
 
+@njit(cache=True, inline="always")
+def frame_at(t, y, p, iw):
+    """What slot_eval needs of the fence and the load at (t, y): cos and sin of alpha, alpha',
+    cos and sin of phi."""
+    al, dal, aw, daw = fence_state(t, y, p, iw[IW_MODE])
+    return math.cos(al), math.sin(al), dal, math.cos(y[2]), math.sin(y[2])
+
+
 @njit(cache=True)
 def classify(t, y, p, iw, codes, gaps, rates, tags):
     """Codes, gaps and gap rates of every slot at (t, y); returns the tip's edge. Without a
@@ -232,9 +240,7 @@ def classify(t, y, p, iw, codes, gaps, rates, tags):
             rates[k] = 0.0
             tags[k] = iw[k] if k < RAIL0 else 0
         return 0
-    al, dal, aw, daw = fence_state(t, y, p, iw[IW_MODE])
-    ca, sa = math.cos(al), math.sin(al)
-    cphi, sphi = math.cos(y[2]), math.sin(y[2])
+    ca, sa, dal, cphi, sphi = frame_at(t, y, p, iw)
     edge = 0
     for k in range(N_SLOTS):
         c, e, g, r = slot_eval(k, y, p, iw, ca, sa, dal, cphi, sphi)
@@ -289,9 +295,7 @@ def _mask_changed(ctx, theta):
     """Predicate for integrate.bisect: has any slot in ctx's mask changed at theta?"""
     t0, h, y0, Q, p, iw, tmp, mask = ctx
     I.dense_eval(y0, Q, theta, tmp, N_CTRL)
-    al, dal, aw, daw = fence_state(t0 + theta * h, tmp, p, iw[IW_MODE])
-    ca, sa = math.cos(al), math.sin(al)
-    cphi, sphi = math.cos(tmp[2]), math.sin(tmp[2])
+    ca, sa, dal, cphi, sphi = frame_at(t0 + theta * h, tmp, p, iw)
     for k in range(N_SLOTS):
         if mask & (1 << k):
             c, e, g, r = slot_eval(k, tmp, p, iw, ca, sa, dal, cphi, sphi)
@@ -305,8 +309,8 @@ def _neg_gap(ctx, theta):
     """-gap of one slot at theta (golden_max of it is the gap's minimum)."""
     t0, h, y0, Q, p, iw, tmp, k = ctx
     I.dense_eval(y0, Q, theta, tmp, N_CTRL)
-    al, dal, aw, daw = fence_state(t0 + theta * h, tmp, p, iw[IW_MODE])
-    c, e, g, r = slot_eval(k, tmp, p, iw, math.cos(al), math.sin(al), dal, math.cos(tmp[2]), math.sin(tmp[2]))
+    ca, sa, dal, cphi, sphi = frame_at(t0 + theta * h, tmp, p, iw)
+    c, e, g, r = slot_eval(k, tmp, p, iw, ca, sa, dal, cphi, sphi)
     return -g
 
 
