@@ -48,3 +48,20 @@ def test_a_kernel_that_needs_more_rows_on_its_rerun_is_an_error(monkeypatch):
     with pytest.raises(RuntimeError, match="not deterministic"):
         api.simulate_resolved(resolve("cycle", "small_far"), trajectory=True)
     assert len(calls) == 2
+
+
+@pytest.mark.parametrize("case, drive", [("small_far", "flexible"), ("long_near", "rigid")])
+def test_trajectory_holds_the_located_maxima(case, drive):
+    """The trajectory has a row at each maximum located inside a step (cycle.record_peaks), so
+    its largest force, deflection and alpha are the results', not the samples around them;
+    the rows stay in time order and the results do not depend on whether it is recorded."""
+    vals = resolve("cycle", case, drive=drive)
+    res, traj = api.simulate_resolved(vals, trajectory=True)
+    alone, _ = api.simulate_resolved(vals)
+    assert res == pytest.approx(alone, nan_ok=True)
+    assert np.all(np.diff(traj["t"]) > 0.0)
+    assert traj["N_fence"].max() == pytest.approx(res["peak_force"], rel=1e-12)
+    assert traj["N_rail"].max() == pytest.approx(res["peak_rail_force"], rel=1e-12, abs=1e-9)
+    assert (traj["alpha"] - traj["alpha_w"]).abs().max() == pytest.approx(res["deflection_max"], rel=1e-12, abs=1e-15)
+    assert traj["alpha"].max() == pytest.approx(res["alpha_max"], rel=1e-12)
+    assert len(traj) > res["n_steps"]  # the peak rows come on top of one row per step

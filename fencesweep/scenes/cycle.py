@@ -314,13 +314,19 @@ def _neg_gap(ctx, theta):
     return -g
 
 
+@njit(cache=True, inline="always")
+def outcome_hit(kind, y, p):
+    """Has outcome `kind` (0 scraped, 1 escaped) happened at state y (MODEL.md §9)?"""
+    m = outcome_margin(kind, y, p)
+    return m >= 0.0 if kind == 0 else m > 0.0
+
+
 @njit(cache=True)
 def _outcome_reached(ctx, theta):
-    """Predicate for integrate.bisect: has outcome `kind` (0 scraped, 1 escaped) happened?"""
+    """Predicate for integrate.bisect: has outcome `kind` happened at theta?"""
     y0, Q, p, tmp, kind = ctx
     I.dense_eval(y0, Q, theta, tmp, N_CTRL)
-    m = outcome_margin(kind, tmp, p)
-    return m >= 0.0 if kind == 0 else m > 0.0
+    return outcome_hit(kind, tmp, p)
 
 
 @njit(cache=True)
@@ -345,7 +351,7 @@ def graze_theta(t, h, y0, Q, p, iw, tmp, g0, r0, g1, r1, codes1):
 
 
 @njit(cache=True)
-def find_event(t, h, y0, Q, p, iw, tmp, g0, r0, g1, r1, codes1, tags1, exited):
+def find_event(t, h, y0, y1, Q, p, iw, tmp, g0, r0, g1, r1, codes1, tags1, exited):
     """First event inside the step [t, t + h] on its dense output: (theta just past it, kind)
     with kind 0 none (theta = 1), 1 a contact change or graze, 2 scraped, 3 escaped."""
     mask = 0
@@ -365,7 +371,7 @@ def find_event(t, h, y0, Q, p, iw, tmp, g0, r0, g1, r1, codes1, tags1, exited):
         kind = 1
     if not exited:
         for oc in range(2):
-            if _outcome_reached((y0, Q, p, tmp, oc), 1.0):
+            if outcome_hit(oc, y1, p):
                 th = I.bisect(_outcome_reached, (y0, Q, p, tmp, oc), 0.0, 1.0, tol)[1]
                 if th <= theta:
                     theta = th
@@ -432,14 +438,18 @@ UNJUDGED = -1.0  # rising[k] when the step before did not judge quantity k at it
 
 
 @njit(cache=True)
-def track_maxima(t, h, theta_end, y0, Q, p, iw, tmp, aux, dy, q0, q1, qa, qb, qs, acc, rising, Ks, ys, atol):
+def track_maxima(t, h, theta_end, y0, Q, p, iw, tmp, aux, dy, q0, q1, qa, qb, qs, ths, acc, rising, Ks, ys,
+                 atol):
     """Running maxima of the tracked quantities over the step [t, t + theta_end h]: the end
     samples, and an interior maximum (the quantity rising at the start and falling at the
     end, judged on the dense output) located by golden-section search (MODEL.md §9).
     rising[k] says whether quantity k rose at the start (1, 0; UNJUDGED when the step before
     was far from its maximum, or after an event: rising[N_Q] = 1); on return it says so for
     the step's end. The force sums cost a right-hand side per sample: they are sampled only
-    in steps near their running maximum."""
+    in steps near their running maximum. ths[k]: the fraction of the step at which quantity
+    k's interior maximum was located, -1 where none was."""
+    for k in range(N_Q):
+        ths[k] = -1.0
     forces = near_maximum(q0, q1, acc, Q_NF) or near_maximum(q0, q1, acc, Q_NR)
     if rising[N_Q] != 0.0:
         for k in range(N_Q):
@@ -474,6 +484,7 @@ def track_maxima(t, h, theta_end, y0, Q, p, iw, tmp, aux, dy, q0, q1, qa, qb, qs
             I.take_step(int(p[Lp.METHOD]), rhs, t, tmp, th * h, p, iw, Ks, dy, ys, aux, atol, p[Lp.TOL], N_CTRL)
             quantities(t + th * h, ys, p, iw, aux, dy, qs)
             m = max(m, qs[k])
+            ths[k] = th
         acc[A_QMAX + k] = m
         rising[k] = 1.0 if q1[k] > qb[k] else 0.0
     rising[N_Q] = 0.0
@@ -527,6 +538,28 @@ def record(traj, row, t, y, p, iw, aux):
         for i in range(5):
             traj[row, 14 + i] = y[8 + i]
     return row + 1
+
+
+@njit(cache=True)
+def record_peaks(traj, row, t, h, theta_end, y0, p, iw, ths, tmp, dy, aux, Ks, ys, atol):
+    """Trajectory rows at the maxima located inside the step (track_maxima's ths), in time
+    order, each at the state of a step of the method to it: so that the trajectory's peaks are
+    the results' (peak_force, deflection_max, alpha_max), not the samples around them."""
+    prev = 0.0
+    while True:
+        th = 2.0
+        for k in range(N_Q):
+            if ths[k] > prev and ths[k] < th:
+                th = ths[k]
+        if th >= theta_end * (1.0 - 1e-9):
+            return row
+        for i in range(N_STATE):
+            tmp[i] = y0[i]
+        rhs(t, tmp, p, iw, Ks[0], aux)
+        I.take_step(int(p[Lp.METHOD]), rhs, t, tmp, th * h, p, iw, Ks, dy, ys, aux, atol, p[Lp.TOL], N_CTRL)
+        rhs(t + th * h, ys, p, iw, dy, aux)
+        row = record(traj, row, t + th * h, ys, p, iw, aux)
+        prev = th
 
 
 @njit(cache=True, inline="always")
@@ -713,7 +746,7 @@ def run(p, y, y1, tmp, dy, K, Q, aux, auxs, iw, codes1, tags1, g0, r0, g1, r1, q
         acc[A_ERR] += err * tol
         I.dense_coeffs(method, K, h, y, y1, Q, N_STATE)
         edge1 = classify(t + h, y1, p, iw, codes1, g1, r1, tags1)
-        theta, kind = find_event(t, h, y, Q, p, iw, tmp, g0, r0, g1, r1, codes1, tags1, acc[A_EXITED] != 0.0)
+        theta, kind = find_event(t, h, y, y1, Q, p, iw, tmp, g0, r0, g1, r1, codes1, tags1, acc[A_EXITED] != 0.0)
         if kind == 0:
             t1 = tc if hits_tc else t + h
         else:
@@ -724,8 +757,10 @@ def run(p, y, y1, tmp, dy, K, Q, aux, auxs, iw, codes1, tags1, g0, r0, g1, r1, q
             quantities_from_aux(t1, y1, p, iw, aux, qv[1])  # aux of the FSAL stage f(t1, y1)
         else:
             quantities(t1, y1, p, iw, aux, dy, qv[1])
-        track_maxima(t, h, theta, y, Q, p, iw, tmp, auxs, dy, qv[0], qv[1], qv[2], qv[3], qv[4], acc, rising,
-                     Ks, ys, atol)
+        track_maxima(t, h, theta, y, Q, p, iw, tmp, auxs, dy, qv[0], qv[1], qv[2], qv[3], qv[4], qv[5], acc,
+                     rising, Ks, ys, atol)
+        if traj.shape[0] > 0:
+            row = record_peaks(traj, row, t, h, theta, y, p, iw, qv[5], tmp, dy, auxs, Ks, ys, atol)
         if acc[A_EXITED] == 0.0:
             acc[A_STAGE + stage_of(iw)] += t1 - t
         h_next = I.next_step(h, err, NU.SAFETY, NU.FAC_MIN, NU.FAC_MAX)

@@ -154,7 +154,7 @@ def stream_kernel(p, loads, period, out, traj, row_starts):
     r0 = np.empty(N_SLOTS)
     g1 = np.empty(N_SLOTS)
     r1 = np.empty(N_SLOTS)
-    qv = np.zeros((5, N_Q))  # q0, q1, qa, qb, scratch
+    qv = np.zeros((6, N_Q))  # q0, q1, qa, qb, scratch, where the step's maxima lie (cycle.track_maxima)
     acc = np.empty(N_ACC)
     atol = np.empty(N_STATE)
     rising = np.ones(N_Q + 1)  # per quantity: rising at the step's start; last: judge it anew
