@@ -57,18 +57,43 @@ def _case_title(df) -> str:
     return f"{p.get('case')}: {p.get('L'):g} x {p.get('A'):g} m load, dP = {p.get('dP'):g} m"
 
 
-def _mark_events(ax, ev, t_scale=1.0, y=None, label=True, color="k"):
-    """Vertical lines at A, B and the C's; letters at the top of the axes."""
-    trans = ax.get_xaxis_transform()
+def _levels(xs, min_sep: float) -> list:
+    """A stacking level (0, 1, 2, ...) for labels at the sorted positions xs: labels on one level
+    are at least min_sep apart, so neighbours close in x go one level up instead of overprinting."""
+    last: list = []
+    out = []
+    for x in xs:
+        k = next((k for k, lx in enumerate(last) if x - lx >= min_sep), len(last))
+        if k == len(last):
+            last.append(x)
+        else:
+            last[k] = x
+        out.append(k)
+    return out
+
+
+def _event_points(ev) -> list:
+    """[(t, letter)] of A, B and the C's (C1, C2, ... when there are several), sorted by time."""
     cs = [(t, f"C{k + 1}" if len(ev.C) > 1 else "C") for k, (t, _, _) in enumerate(ev.C)]
-    pts = sorted([(ev.A, "A"), (ev.B, "B")] + cs)
-    for k, (t, letter) in enumerate(pts):
-        if not math.isfinite(t):
-            continue
+    return sorted(p for p in [(ev.A, "A"), (ev.B, "B")] + cs if math.isfinite(p[0]))
+
+
+def _mark_events(ax, ev, t_scale=1.0, label=True, color="k") -> int:
+    """Vertical lines at A, B and the C's; letters above the axes, stacked where they are close
+    (call after the x limits are set). Returns the number of letter rows, for the title's pad."""
+    pts = _event_points(ev)
+    lo, hi = ax.get_xlim()
+    for t, _ in pts:
         ax.axvline(t * t_scale, color=color, lw=0.7, ls=":", zorder=1)
-        if label:
-            ax.text(t * t_scale, 1.01 if k % 2 == 0 else 1.08, letter, transform=trans, ha="center", va="bottom",
-                    fontsize=8, fontweight="bold", color=color)
+    shown = [(t, s) for t, s in pts if lo <= t * t_scale <= hi]
+    if not label or not shown:
+        return 0
+    lev = _levels([t * t_scale for t, _ in shown], 0.035 * (hi - lo))
+    for (t, letter), k in zip(shown, lev):
+        ax.annotate(letter, (t * t_scale, 1.0), xycoords=("data", "axes fraction"), xytext=(0, 2 + 10 * k),
+                    textcoords="offset points", ha="center", va="bottom", fontsize=8, fontweight="bold",
+                    color=color)
+    return max(lev) + 1
 
 
 def _shade_stages(ax, ev, alpha=0.6):
@@ -116,14 +141,17 @@ def _fig_impact(res: Path, out: Path, law: str) -> Path:
                 ax.plot([first["dt_onset"] * 1e3], [first["N_onset"] / 1e3], "o", ms=4, color=color)
         ff = rigid.attrs["results"]["freefall_force"] / 1e3
         ax.axhline(ff, color="0.4", lw=0.8, ls=":")
-        ax.text(0.02, ff, f"free fall from H = 0.3 m (e = 0.2): {ff:.1f} kN", ha="left", va="bottom",
-                fontsize=7, color="0.3", transform=ax.get_yaxis_transform())
+        rp = rigid.attrs["params"]
+        # the legend and the free-fall level's label in a band of their own above the line and the curves
+        ax.text(0.4, ff, f"free fall from H = {rp['H']:g} m (e = {rp['e']:g}): {ff:.1f} kN", ha="center",
+                va="bottom", fontsize=7, color="0.3", transform=ax.get_yaxis_transform())
         ax.set_xlim(-0.1 * window * 1e3, window * 1e3)
-        ax.set_ylim(0, 1.15 * max(ff, ax.get_ylim()[1]))
+        top = 1.6 * max(ff, ax.get_ylim()[1])
+        ax.set_ylim(0, top)
         ax.set_xlabel("time since first contact A, t - t_A [ms]")
         ax.set_ylabel("normal force of the load on the fence N [kN]")
         ax.grid(alpha=0.3)
-        ax.legend(loc="upper right", bbox_to_anchor=(1.0, 0.8))
+        ax.legend(loc="upper right", framealpha=0.95)
     extra = " Dots: the force at the first integrator step after contact (the jump of the linear law)." \
         if law == "linear" else ""
     fig.suptitle(f"Paper Fig. {'2' if law == 'linear' else '3'}: force of the first impact, {law_text}\n"
@@ -147,7 +175,7 @@ def fig3(res: Path, out: Path) -> Path:
 def fig4(res: Path, out: Path) -> Path:
     """Paper Fig. 4: drive input alpha_w and the moment of the load on the fence, both cases."""
     plt = _plt()
-    fig, axes = plt.subplots(3, 1, figsize=(9, 8.6), gridspec_kw={"height_ratios": [0.7, 1, 1]})
+    fig, axes = plt.subplots(3, 1, figsize=(9, 9.2), gridspec_kw={"height_ratios": [0.7, 1, 1]})
     base = RP.read_traj(res, "small_far_flexible")
     tc = base.attrs["params"]["t_c"]
     ax = axes[0]
@@ -166,7 +194,6 @@ def fig4(res: Path, out: Path) -> Path:
         ax.plot(rig["t"], rig["M_fence"], color=DRIVE_COLORS["rigid"], lw=0.9, ls="--", label="rigid fence")
         ax.plot(flex["t"], flex["M_fence"], color=DRIVE_COLORS["flexible"], lw=1.3,
                 label="flexible fence, B2 = 72, K2 = 570")
-        _mark_events(ax, ev)
         ax.set_ylabel("moment M [N m]")
         ax.set_xlabel("time t [s]")
         if case == "small_far":  # the impact and the brushing last 0.1 s of the cycle: zoom, log scale
@@ -176,11 +203,13 @@ def fig4(res: Path, out: Path) -> Path:
         else:
             ax.set_xlim(0, tc)
             zoom = ""
-        ax.set_title(f"({letter}) {_case_title(flex)}{zoom}", pad=12)
+        rows = _mark_events(ax, ev)
+        ax.set_title(f"({letter}) {_case_title(flex)}{zoom}", pad=6 + 10 * rows)
         ax.grid(alpha=0.3)
         mx = max(flex["M_fence"].max(), rig["M_fence"].max())
         ax.text(0.01, 0.95, f"peak {flex['M_fence'].max():.0f} N m (flexible), {rig['M_fence'].max():.0f} N m (rigid)",
-                transform=ax.transAxes, va="top", fontsize=8)
+                transform=ax.transAxes, va="top", fontsize=8,
+                bbox={"boxstyle": "round,pad=0.2", "fc": "white", "ec": "none", "alpha": 0.8})
         ax.set_ylim(min(0.0, flex["M_fence"].min()) * 1.1, mx * (3.0 if case == "small_far" else 1.12))
     h, lab = axes[2].get_legend_handles_labels()
     axes[2].legend(handles=h + _stage_legend_handles(stages), loc="upper right", ncol=2,
@@ -321,7 +350,8 @@ def fig6(res: Path, out: Path) -> Path:
 def fig7(res: Path, out: Path) -> Path:
     """Paper Fig. 7: fence angle alpha and drive angle alpha_w against time, A, B, C marked."""
     plt = _plt()
-    fig, axes = plt.subplots(2, 2, figsize=(11, 6.4), sharex="col", gridspec_kw={"height_ratios": [1.4, 1]})
+    fig, axes = plt.subplots(2, 2, figsize=(11, 7.0), sharex="col", gridspec_kw={"height_ratios": [1.4, 1]})
+    stages: set = set()
     for col, case in enumerate(RP.CASES):
         flex = RP.read_traj(res, f"{case}_flexible")
         rig = RP.read_traj(res, f"{case}_rigid")
@@ -333,16 +363,18 @@ def fig7(res: Path, out: Path) -> Path:
         ax = axes[0, col]
         ax.plot(t, aw, color="k", lw=1.1, ls="--", label="alpha_w, drive (= alpha of the rigid fence)")
         ax.plot(t, al, color=DRIVE_COLORS["flexible"], lw=1.5, label="alpha, flexible fence 72/570")
-        cs = [(tc, f"C{k + 1}" if len(ev.C) > 1 else "C") for k, (tc, _, _) in enumerate(ev.C)]
-        pts = sorted([(ev.A, "A"), (ev.B, "B")] + cs)
-        for k, (tt, letter) in enumerate(pts):
-            if math.isfinite(tt):
-                y = float(np.interp(tt, t, al))
-                ax.plot([tt], [y], "o", ms=5, color="k", zorder=5)
-                up = k % 2 == 0
-                ax.annotate(letter, (tt, y), xytext=(0, 14 if up else -16), textcoords="offset points", fontsize=8,
-                            fontweight="bold", ha="center", va="center",
-                            arrowprops={"arrowstyle": "-", "lw": 0.5, "color": "0.3"})
+        pts = _event_points(ev)
+        ymax = max(al.max(), aw.max())
+        # letters below the curve (the legend is above it; near alpha = 0, where the contact bars are,
+        # above it), stacked where events are close in time
+        lev = _levels([tt for tt, _ in pts], 0.045 * float(flex.attrs["params"]["t_c"]))
+        for (tt, letter), k in zip(pts, lev):
+            y = float(np.interp(tt, t, al))
+            ax.plot([tt], [y], "o", ms=5, color="k", zorder=5)
+            sign = 1 if y < 0.2 * ymax else -1
+            ax.annotate(letter, (tt, y), xytext=(0, sign * (14 + 11 * k)), textcoords="offset points", fontsize=8,
+                        fontweight="bold", ha="center", va="center",
+                        arrowprops={"arrowstyle": "-", "lw": 0.5, "color": "0.3", "shrinkB": 3})
         # contact intervals (the paper's Delta t2): rigid and flexible
         ymax = max(al.max(), aw.max())
         for k, (e, name, c) in enumerate(((evr, "contact, rigid", DRIVE_COLORS["rigid"]),
@@ -350,7 +382,7 @@ def fig7(res: Path, out: Path) -> Path:
             yb = -0.08 * ymax - k * 0.07 * ymax
             ax.plot([e.A, e.B], [yb, yb], color=c, lw=4, solid_capstyle="butt")
             ax.text(e.B, yb, f"  {name}: {e.B - e.A:.3f} s", va="center", fontsize=7, color=c)
-        ax.set_ylim(-0.25 * ymax, 1.4 * ymax)
+        ax.set_ylim(-0.3 * ymax, 1.4 * ymax)
         ax.set_ylabel("angle [deg]")
         ax.set_title(_case_title(flex))
         ax.grid(alpha=0.3)
@@ -359,23 +391,25 @@ def fig7(res: Path, out: Path) -> Path:
         _shade_stages(ax, ev)
         ax.plot(t, al - aw, color=DRIVE_COLORS["flexible"], lw=1.3)
         ax.axhline(0, color="k", lw=0.6)
-        _mark_events(ax, ev)
         tc = flex.attrs["params"]["t_c"]
+        ax.set_xlim(0, tc)
+        _mark_events(ax, ev)
+        stages |= {s for _, _, s in ev.runs}
         resid = math.degrees(flex.attrs["results"]["residual_deflection"])
-        ax.annotate(f"residual at t_c: {resid:.2f} deg", (tc, float(np.interp(tc, t, al - aw))),
-                    xytext=(-110, 18), textcoords="offset points", fontsize=7,
-                    arrowprops={"arrowstyle": "->", "lw": 0.6})
+        # the label in the lower right corner, away from the curve (which ends near 0), an arrow to the point
+        ax.annotate(f"residual deflection at t_c: {resid:.2f} deg", (tc, float(np.interp(tc, t, al - aw))),
+                    xytext=(0.97, 0.06), textcoords="axes fraction", ha="right", va="bottom", fontsize=7,
+                    arrowprops={"arrowstyle": "->", "lw": 0.6, "shrinkA": 2})
         ax.set_ylabel("deflection alpha - alpha_w [deg]")
         ax.set_xlabel("time t [s]")
-        ax.set_xlim(0, tc)
         ax.grid(alpha=0.3)
-        if col == 1:
-            ax.legend(handles=_stage_legend_handles({s for _, _, s in ev.runs}), loc="lower right", fontsize=7,
-                      title="stage", title_fontsize=7)
+    fig.legend(handles=_stage_legend_handles(stages), loc="lower center", ncol=len(stages), fontsize=7,
+               title="shaded: stage of the flexible run (MODEL.md §10)", title_fontsize=7,
+               bbox_to_anchor=(0.5, 0.0))
     fig.suptitle(f"Paper Fig. 7: response of the fence, flexible element B2 = 72 N m s/rad, K2 = 570 N m/rad, "
                  f"{WORKING_POINT}\nA first contact, B last loss of contact, C stage change; bars: time in contact "
                  "(rigid vs flexible)")
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0.05, 1, 1))
     return _save(fig, out, "fig7_fence_response.png")
 
 
@@ -754,6 +788,16 @@ def _arrow(ax, head, vec, color):
                                  color=color, lw=1.6, zorder=7, clip_on=False))
 
 
+def _force_label(ax, tail, u, text, color):
+    """A force's value just beyond its arrow's tail, on the far side along u (the unit vector from
+    the head to the tail), so the text never lies on the arrow, the fence or the load."""
+    x, y = tail + 0.03 * u
+    ha = "left" if u[0] > 0.35 else ("right" if u[0] < -0.35 else "center")
+    va = "bottom" if u[1] > 0.35 else ("top" if u[1] < -0.35 else "center")
+    ax.text(x, y, text, fontsize=7, color=color, ha=ha, va=va, zorder=8,
+            bbox={"boxstyle": "round,pad=0.1", "fc": "white", "ec": "none", "alpha": 0.8})
+
+
 def _cycle(res: Path, out: Path, case: str) -> Path:
     plt = _plt()
     df = RP.read_traj(res, f"{case}_flexible")
@@ -762,9 +806,9 @@ def _cycle(res: Path, out: Path, case: str) -> Path:
     inst = _instants(df, 8)
     t = df["t"].to_numpy()
     nmax = max(float(df["N_fence"].max()), float(df["N_rail"].max()), 1e-9)
-    fig, axes = plt.subplots(4, 2, figsize=(10, 9.0))
+    fig, axes = plt.subplots(4, 2, figsize=(8.6, 10.0))
     xlim = (-0.8, 1.6)
-    ylim = (-0.3, p["P_max"] + 0.25)
+    ylim = (-0.5, p["P_max"] + 0.3)  # room under the belt for the rail's and the pivot's force labels
     for k, (ax, (tt, label)) in enumerate(zip(axes.flat, inst)):
         i = min(int(np.searchsorted(t, tt - 1e-12)), len(t) - 1)
         row = df.iloc[i]
@@ -786,15 +830,14 @@ def _cycle(res: Path, out: Path, case: str) -> Path:
             s = min(max(float(row["M_fence"]) / nf, 0.0), p["l"])
             ln = 0.06 + 0.24 * math.sqrt(nf / nmax)
             _arrow(ax, s * d, ln * nvec, "#2166ac")
-            tail = s * d - (ln + 0.04) * nvec
-            ax.text(*tail, f"{nf:.0f} N" if nf < 1e3 else f"{nf / 1e3:.2f} kN", fontsize=7, color="#2166ac",
-                    ha="center", va="center")
+            _force_label(ax, s * d - ln * nvec, -nvec, f"{nf:.0f} N" if nf < 1e3 else f"{nf / 1e3:.2f} kN",
+                         "#2166ac")
         if nr > 0:
             xs, ys = o[:-1, 0], o[:-1, 1]
             j = int(np.argmin(np.where(xs <= 0.0, ys, np.inf)))
             ln = 0.06 + 0.18 * math.sqrt(nr / nmax)
             _arrow(ax, np.array([xs[j], 0.0]), np.array([0.0, ln]), "#1b7837")
-            ax.text(xs[j] + 0.04, -ln, f"rail {nr:.0f} N", fontsize=7, color="#1b7837", ha="left", va="center")
+            _force_label(ax, np.array([xs[j], -ln]), np.array([0.0, -1.0]), f"rail {nr:.0f} N", "#1b7837")
         stage = "after the exit" if gone else f"stage {RP.STAGE_NAMES.get(int(row['stage']), '?')}"
         ax.set_title(f"{k + 1}. t = {row['t']:.3f} s" + (f", {label}" if label else "") + f"; {stage}\n"
                      f"alpha = {math.degrees(al):.1f} deg, alpha - alpha_w = {math.degrees(al - aw):+.1f} deg",
