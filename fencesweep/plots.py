@@ -224,55 +224,96 @@ def fig4(res: Path, out: Path) -> Path:
 
 # ---------------------------------------------------------------------------- Fig 5a
 def fig5a(res: Path, out: Path) -> Path:
-    """Paper Fig. 5a: overload against v (t_c = 1.36 s) and t_c (v = 2 m/s); rigid, flexible, free."""
+    """Paper Fig. 5a: overload against v (t_c = 1.36 s) and t_c (v = 2 m/s); rigid, flexible, free. The named
+    cases, and (when its tables are there) the worst over the load's placements, the paper's §4.1 arrangement."""
     plt = _plt()
     df = RP.read_table(res, "fig5a")
     ff = RP.read_table(res, "freefall_H").sort_values("H")
     ref = float(ff.loc[(ff["H"] - 0.3).abs().idxmin(), "peak_force"])
-    levels = [(h, float(ff.loc[(ff["H"] - h).abs().idxmin(), "peak_force"]) / ref) for h in (0.1, 0.2, 0.3)]
+    levels = [(h, float(ff.loc[(ff["H"] - h).abs().idxmin(), "peak_force"]) / ref) for h in RP.FREEFALL_LEVELS_H]
     cases = [c for c in RP.CASES if c in set(df["case"])]
-    fig, axes = plt.subplots(len(cases), 2, figsize=(10, 3.6 * len(cases)), squeeze=False)
+    worst = {axis: RP.worst_over_placements(RP.read_table(res, n)) for n, axis in RP.WORST_TABLES.items()
+             if RP.table_path(res, n).exists()}
+    nrow = len(cases) + (1 if worst else 0)
+    fig, axes = plt.subplots(nrow, 2, figsize=(10, 3.6 * nrow), squeeze=False)
     tc0 = min(set(df["t_c"]), key=lambda x: abs(x - 1.36))
     v0 = min(set(df["v"]), key=lambda x: abs(x - 2.0))
+    cuts = (("v", "t_c", tc0, "belt speed v [m/s]"), ("t_c", "v", v0, "work cycle time t_c [s]"))
+    ymax = max(1.15, float(df["overload"].max()) * 1.08)
     for r, case in enumerate(cases):
         d = df[df["case"] == case]
-        for c, (axis, fixed, fval, label) in enumerate((("v", "t_c", tc0, "belt speed v [m/s]"),
-                                                        ("t_c", "v", v0, "work cycle time t_c [s]"))):
+        for c, (axis, fixed, fval, label) in enumerate(cuts):
             ax = axes[r, c]
             for drive in ("rigid", "flexible", "free"):
                 s = d[(d["drive"] == drive) & (d[fixed] == fval)].sort_values(axis)
                 if s.empty or (drive == "free" and not (s["t_first_contact"] > 1e-3).any()):
                     continue  # a load touching at t = 0 releases the free fence at once: nothing to show
-                col = DRIVE_COLORS[drive]
-                ax.plot(s[axis], s["overload"], color=col, lw=1.4, label=DRIVE_LABELS[drive])
-                ok = s["outcome"] == "scraped"
-                ax.plot(s[axis][ok], s["overload"][ok], "o", ms=3.5, color=col)
-                ax.plot(s[axis][~ok], s["overload"][~ok], "x", ms=6, mew=1.5, color=col)
-            for h, lev in levels:
-                ax.axhline(lev, color="0.35", lw=0.9, ls="--")
-                ax.text(1.01, lev, f"H = {h:g} m", va="center", fontsize=7, color="0.3",
-                        transform=ax.get_yaxis_transform())
+                _overload_curve(ax, s, axis, drive)
             if case == "long_near":
-                ax.text(0.02, 0.97, "free fence not shown: this load touches the fence at t = 0, which releases "
+                ax.text(0.02, 0.97, "free fence not shown: this load touches the fence at t = 0,\nwhich releases "
                         "it at once", transform=ax.transAxes, fontsize=7, va="top", color=DRIVE_COLORS["free"])
-            ax.set_xlabel(label)
-            ax.set_ylabel("overload [-]")
             unit = "s" if fixed == "t_c" else "m/s"
-            ax.set_title(f"{case}: against {axis} at {fixed} = {fval:g} {unit}")
-            ax.grid(alpha=0.3)
-            ax.set_ylim(0, max(1.15, float(d["overload"].max()) * 1.08))
+            _fig5a_axes(ax, levels, label, f"{case}: against {axis} at {fixed} = {fval:g} {unit}", ymax)
+    if worst:
+        _fig5a_worst_row(axes[-1], worst, df[df["case"] == "small_far"], cuts, levels,
+                         max(ymax, max(float(w["overload"].max()) for w in worst.values()) * 1.08))
     from matplotlib.lines import Line2D
 
     h, lab = axes[0, 0].get_legend_handles_labels()
     h += [Line2D([], [], ls="", marker="o", color="0.3", ms=4), Line2D([], [], ls="", marker="x", color="0.3", ms=6),
           Line2D([], [], ls="--", color="0.35")]
-    lab += ["load scraped", "load NOT scraped (escaped)", "free fall from H = 0.1 / 0.2 / 0.3 m"]
+    lab += ["load scraped", "load NOT scraped (escaped)",
+            f"free fall from H = {' / '.join(f'{x:g}' for x in RP.FREEFALL_LEVELS_H)} m"]
+    if worst:
+        h += [Line2D([], [], ls=":", color="0.3", lw=0.8),
+              Line2D([], [], ls="", marker="o", ms=9, mfc="none", color="0.3")]
+        lab += ["bottom row, dotted: the named small_far (top row)",
+                "bottom row, ringed: two fence contact points at once (S3) in that contact"]
     fig.legend(h, lab, loc="lower center", ncol=3, fontsize=8, bbox_to_anchor=(0.5, -0.01))
     fig.suptitle("Paper Fig. 5a: overload = peak fence force / peak of a free fall from H = 0.3 m (m1 = 15 kg, "
                  "m2 = 5 kg)\nThe free fence is released at the first contact (an idealisation of the impact, "
                  "not a working drive)")
-    fig.tight_layout(rect=(0, 0.06, 1, 1))
+    fig.tight_layout(rect=(0, 0.08 if worst else 0.06, 1, 1))
     return _save(fig, out, "fig5a_overload_v_tc.png")
+
+
+def _fig5a_worst_row(axes, worst: dict, sf, cuts, levels, ymax: float) -> None:
+    """Fig. 5a's bottom row: the worst overload over the load's placements (§4.1), the named small_far dotted."""
+    for ax, (axis, fixed, fval, label) in zip(axes, cuts):
+        if axis not in worst:
+            ax.axis("off")
+            continue
+        w = worst[axis]
+        for drive in ("rigid", "flexible", "free"):
+            named = sf[(sf["drive"] == drive) & (sf[fixed] == fval)].sort_values(axis)
+            ax.plot(named[axis], named["overload"], color=DRIVE_COLORS[drive], lw=0.8, ls=":")
+            s = w[w["drive"] == drive].sort_values(axis)
+            _overload_curve(ax, s, axis, drive)
+            two = s[s["two_points"]]
+            ax.plot(two[axis], two["overload"], "o", ms=9, mfc="none", mew=0.9, color=DRIVE_COLORS[drive])
+        unit = "s" if fixed == "t_c" else "m/s"
+        _fig5a_axes(ax, levels, label, f"worst of {int(w['n_placements'].iloc[0])} placements of the small_far "
+                    f"load (paper §4.1)\nagainst {axis} at {fixed} = {fval:g} {unit}", ymax)
+
+
+def _overload_curve(ax, s, axis: str, drive: str) -> None:
+    """One drive's overload along a cut: line, dots where the load is scraped, crosses where it is not."""
+    col = DRIVE_COLORS[drive]
+    ax.plot(s[axis], s["overload"], color=col, lw=1.4, label=DRIVE_LABELS[drive])
+    ok = s["outcome"] == "scraped"
+    ax.plot(s[axis][ok], s["overload"][ok], "o", ms=3.5, color=col)
+    ax.plot(s[axis][~ok], s["overload"][~ok], "x", ms=6, mew=1.5, color=col)
+
+
+def _fig5a_axes(ax, levels, xlabel: str, title: str, ymax: float) -> None:
+    for h, lev in levels:
+        ax.axhline(lev, color="0.35", lw=0.9, ls="--")
+        ax.text(1.01, lev, f"H = {h:g} m", va="center", fontsize=7, color="0.3", transform=ax.get_yaxis_transform())
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel("overload [-]")
+    ax.set_title(title)
+    ax.grid(alpha=0.3)
+    ax.set_ylim(0, ymax)
 
 
 # ---------------------------------------------------------------------------- Fig 5b
@@ -706,6 +747,7 @@ STREAM_ELEMENTS = (("paper 72/570", dict(B2=72.0, K2=570.0), "#d62728", "-"),
                    ("recommended 15/2075", dict(B2=15.0, K2=2075.0), "#1a9850", "-"),
                    ("well-damped 140/2075", dict(B2=140.0, K2=2075.0), "#4575b4", "--"))
 STREAM_FIGURE_CYCLES = 10
+STREAM_FIGURE_TC = (1.36, 1.0)  # [s] the work cycle times of the figure's two panels (T = t_c)
 
 
 def stream(res: Path, out: Path) -> Path:
@@ -716,7 +758,7 @@ def stream(res: Path, out: Path) -> Path:
     plt = _plt()
     loads = ["small_far", "long_near"] * (STREAM_FIGURE_CYCLES // 2)
     fig, axes = plt.subplots(2, 1, figsize=(13, 7.5), layout="constrained")
-    for ax, tc in zip(axes, (1.36, 1.0)):
+    for ax, tc in zip(axes, STREAM_FIGURE_TC):
         for label, params, color, ls in STREAM_ELEMENTS:
             r, df = simulate_resolved(resolve("stream", loads=loads, t_c=tc, period=tc, **params), trajectory=True)
             amp = math.degrees(r["worst_start_amplitude"])
