@@ -381,8 +381,9 @@ def fig6(res: Path, out: Path) -> Path:
     h += [Line2D([], [], ls="", marker="o", color="0.3", ms=4), Line2D([], [], ls="", marker="x", color="0.3", ms=6)]
     lab += ["scraped", "NOT scraped (escaped)"]
     axes[0].legend(h, lab, loc="center right")
-    fig.suptitle(f"Paper Fig. 6: the springy-damping element at relative damping Psi = 1\n"
-                 f"(K2 = B2^2 / (4 I2), I2 = 2.4 kg m^2), {WORKING_POINT}, m2 = 5 kg")
+    fig.suptitle("Paper Fig. 6: the springy-damping element at relative damping Psi = 1\n"
+                 "(K2 = B2^2 / (4 I2)" + (f", I2 = {float(df['I2'].iloc[0]):.3g} kg m^2" if "I2" in df else "")
+                 + f"), {WORKING_POINT}, m2 = 5 kg")
     fig.tight_layout()
     return _save(fig, out, "fig6_psi1_b2.png")
 
@@ -487,7 +488,7 @@ def fig8(res: Path, out: Path) -> Path:
             live = df[df["stage"] >= 0]
             col = DRIVE_COLORS[drive]
             ax.plot(live["x"], live["y"], ls=ls, color=col, lw=1.6,
-                    label=f"{drive}: centroid path, exit at x = {r['x_exit']:.2f} m, contact {r['contact_time']:.2f} s")
+                    label=f"{drive}: centroid path,\nexit at x = {r['x_exit']:.2f} m,\ncontact {r['contact_time']:.2f} s")
             last = live.iloc[-1]
             o = _outline(p["L"], p["A"], last["x"], last["y"], last["phi"])
             ax.fill(o[:, 0], o[:, 1], color=col, alpha=0.25, lw=0)
@@ -514,7 +515,8 @@ def fig8(res: Path, out: Path) -> Path:
         ax.set_xlabel("x along the belt [m]")
         ax.set_ylabel("y across the belt [m]")
         ax.set_title(f"{_case_title(RP.read_traj(res, f'{case}_rigid'))}: load and fence at the exit (shaded)")
-        ax.legend(loc="center left", fontsize=7, bbox_to_anchor=(0.0, 0.55))
+        # outside, to the right: inside, every free spot of one case is taken by a path or a fence in the other
+        ax.legend(loc="center left", fontsize=7, bbox_to_anchor=(1.01, 0.5), frameon=False)
     fig.suptitle(f"Paper Fig. 8: path of the load's centroid, rigid vs flexible fence (72/570), {WORKING_POINT}")
     fig.tight_layout()
     return _save(fig, out, "fig8_load_path.png")
@@ -767,14 +769,16 @@ def stream(res: Path, out: Path) -> Path:
                           f"{r['n_scraped']}/{r['n_cycles']} scraped")
         for k in range(STREAM_FIGURE_CYCLES + 1):
             ax.axvline(k * tc, color="0.6", lw=0.6, ls=":")
+        lo, hi = ax.get_ylim()
+        ax.set_ylim(lo, hi + 0.12 * (hi - lo))  # a band at the top for the loads' names, above the curves
         for k in range(STREAM_FIGURE_CYCLES):
-            ax.text((k + 0.5) * tc, 0.03, "small_far" if k % 2 == 0 else "long_near",
-                    transform=ax.get_xaxis_transform(), ha="center", va="bottom", fontsize=7, color="0.35")
+            ax.text((k + 0.5) * tc, 0.98, "small_far" if k % 2 == 0 else "long_near",
+                    transform=ax.get_xaxis_transform(), ha="center", va="top", fontsize=7, color="0.35")
         ax.axhline(0, color="k", lw=0.6)
         ax.set_xlim(0, STREAM_FIGURE_CYCLES * tc)
         ax.set_xlabel("time t [s] (dotted: the start of each cycle, t_k = k T)")
         ax.set_ylabel("deflection alpha - alpha_w [deg]")
-        ax.set_title(f"t_c = T = {tc:g} s ({3600 / tc:.0f} packages/h), the load of each cycle at the bottom",
+        ax.set_title(f"t_c = T = {tc:g} s ({3600 / tc:.0f} packages/h), the load of each cycle at the top",
                      fontsize=9)
         ax.grid(alpha=0.3)
         ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7, frameon=False)
