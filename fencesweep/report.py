@@ -55,8 +55,18 @@ TRAJECTORIES = {
 }
 
 CASES = ("small_far", "long_near")
-CASE_TEXT = {"small_far": "small_far: 0.2 x 0.1 m load, 0.6 m from the rail",
-             "long_near": "long_near: 0.7 x 0.1 m load against the rail"}
+
+
+def case_text(case: str) -> str:
+    """'small_far: 0.2 x 0.1 m load, 0.6 m from the rail', from the named case's parameters."""
+    from .params import resolve
+
+    p = resolve("cycle", case)
+    return (f"{case}: {p['L']:g} x {p['A']:g} m load"
+            + (f", {p['dP']:g} m from the rail" if p["dP"] > 0 else " against the rail"))
+
+
+CASE_TEXT = {c: case_text(c) for c in CASES}
 STAGE_NAMES = {0: "S1", 1: "S2", 2: "S3", 3: "S4", 4: "rail", -1: "exit"}
 
 #: default threshold of the "fence is home" constraint on residual_amplitude (see residual_reason)
