@@ -828,28 +828,47 @@ def _worst_case_text(I: ReportInputs) -> list[str]:
     two = pd.concat(list(W.values()))
     two_r = two[two["drive"] == "rigid"]
     L.append(f"Of the worst placements, {int(two['two_points'].sum())} of {len(two)} ({int(two_r['two_points'].sum())} "
-             f"of {len(two_r)} for the rigid fence) had two fence contact points at once during their contact (S3): "
-             "the load's corner meets the fence at its tip, the fence's face touches the corner while the tip "
-             "touches the load's face, and peak_force (MODEL.md §11) adds the two forces."
-             + _worst_peak_stage(I) + " These are the largest overloads of the search; whether they are physics or "
-             "one overlap counted twice by the two contacts is a question for the contact model at the fence's tip, "
-             "and until it is answered the worst case over placements is an upper bound.")
+             f"of {len(two_r)} for the rigid fence) had two fence contact points at once (S3) during their contact; "
+             "peak_force (MODEL.md §11) adds the forces of all contact points." + _worst_peak_stage(I))
     L.append("")
     return L
 
 
 def _worst_peak_stage(I: ReportInputs) -> str:
-    """What the trajectory of the rigid fence's worst placement at the working point shows at its peak."""
-    name = "worst_rigid"
-    if not traj_path(I.res, name).exists():
+    """Where the worst placements at the working point peak (trajectories traj/worst_<drive>.parquet)."""
+    peaks = {}
+    for drive in ("rigid", "flexible", "free"):
+        if traj_path(I.res, f"worst_{drive}").exists():
+            df = read_traj(I.res, f"worst_{drive}")
+            k = int(np.argmax(df["N_fence"].to_numpy()))
+            peaks[drive] = (int(df["stage"].iloc[k]), float(df["t"].iloc[k]), df.attrs["params"],
+                            _corner_along(df.iloc[k], df.attrs["params"]))
+    if not peaks:
         return ""
-    df = read_traj(I.res, name)
-    k = int(np.argmax(df["N_fence"].to_numpy()))
-    st = int(df["stage"].iloc[k])
-    p = df.attrs["params"]
-    return (f" The rigid fence's worst placement at the working point (dP = {p['dP']:g}, R_s = {p['R_s']:.2g} m, "
-            f"trajectory `traj/{name}.parquet`) peaks at t = {df['t'].iloc[k]:.4f} s in stage "
-            f"{STAGE_NAMES.get(st, st)}" + (" (two fence contact points)." if st == 2 else "."))
+    txt = (" At the working point (trajectories `traj/worst_<drive>.parquet`) the worst placements peak in stage "
+           + ", ".join(f"{STAGE_NAMES.get(st, st)} ({d}, dP = {p['dP']:g}, R_s = {p['R_s']:.2g} m, t = {t:.4f} s, "
+                       f"the load's corner on the fence {s_:.3f} m along it, l = {p['l']:g} m)"
+                       for d, (st, t, p, s_) in peaks.items()) + ".")
+    two = [d for d, (st, _, p, s_) in peaks.items() if st == 2 and abs(s_ - p["l"]) < p["A"] / 2]
+    if two:
+        txt += (f" A peak in S3 with that corner at the fence's tip ({', '.join(two)}): the fence's face presses on "
+                "the corner while the tip presses on the load's near face, and the two forces add. Whether that is "
+                "physics or one overlap counted twice by the two contacts is a question "
+                "for the contact model at the fence's tip; until it is answered, these worst cases are upper bounds"
+                + (", and the single-contact peaks (" + ", ".join(d for d in peaks if d not in two)
+                   + ") are the cleaner reading of the paper's arrangement." if len(two) < len(peaks) else "."))
+    return txt
+
+
+def _corner_along(row, p) -> float:
+    """How far along the fence (from the pivot) the load's corner nearest the fence's line (the one
+    pressing on it) is, in one trajectory row."""
+    from .params import load_corners
+
+    d = (math.cos(row["alpha"]), math.sin(row["alpha"]))
+    pts = [(row["x"] + cx, row["y"] + cy) for cx, cy in load_corners(p["L"], p["A"], row["phi"])]
+    x, y = min(pts, key=lambda q: -q[0] * d[1] + q[1] * d[0])  # the smallest distance along the normal n
+    return x * d[0] + y * d[1]
 
 
 def _jump_text(I: ReportInputs) -> list[str]:

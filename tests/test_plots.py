@@ -258,3 +258,16 @@ def test_residual_reason_is_computed():
     text = RP.residual_reason(1.0, 15.0, 1.2, 0.1)
     assert "6.7% of the permitted deflection (15 deg)" in text and "21 mm off the rail line" in text
     assert "42 mm" in RP.residual_reason(2.0, 15.0, 1.2, 0.1)
+
+
+def test_report_reads_where_the_worst_placements_peak(results, tmp_path):
+    import shutil
+
+    res = tmp_path / "res"
+    shutil.copytree(results, res)
+    for drive, stage in (("rigid", 2), ("flexible", 0)):
+        df, vals, r = _trajectory("small_far", {"drive": drive, "dP": 0.5, "R_s": 0.3})
+        df.loc[df["N_fence"].idxmax(), "stage"] = stage
+        store.write_trajectory(df, RP.traj_path(res, f"worst_{drive}"), vals, r)
+    text = RP.write_report(res).read_text()
+    assert "peak in stage S3 (rigid, dP = 0.5, R_s = 0.3 m" in text and "S1 (flexible, dP = 0.5" in text
