@@ -900,13 +900,44 @@ def _jump_text(I: ReportInputs) -> list[str]:
                     "the belt's speed adds its component along the fence's normal (v sin alpha) to the fence's own. "
                     "After it the corner is already past the tip, and the tip strikes the load's flat near face from "
                     "below, along the face's normal, to which the belt's speed adds nothing; the first contact is "
-                    f"then the moment the tip reaches y = dP, t_A = {after['t_first_contact'].min():.4f} to "
-                    f"{after['t_first_contact'].max():.4f} s for every {axis} from {a1:g} {unit} on."
+                    f"then the moment the tip reaches y = dP, t_A = {_span(after['t_first_contact'], '.4f')} s "
+                    f"for every {axis} from {a1:g} {unit} on."
                     if explained else
                     f"The leading corner's x at the first contact ({xf[0]:.3f} / {xf[1]:.3f} m) does not cross the "
                     f"tip's x at the load's height ({xt:.3f} m) here: this jump has another cause."))
     L.append("")
     return L
+
+
+def _span(x, fmt: str) -> str:
+    """'0.4277' when all values print alike, else '0.5346 to 0.5975'."""
+    lo, hi = format(float(x.min()), fmt), format(float(x.max()), fmt)
+    return lo if lo == hi else f"{lo} to {hi}"
+
+
+def _nearest_escapes(I: ReportInputs) -> str:
+    """The escapes of the named cases (rigid and flexible fence) nearest the working point, along each cut."""
+    p = I.base
+    out = []
+    for case in CASES:
+        dc = I.f5a[I.f5a["case"] == case]
+        for axis, (d, _, _) in _cuts(dc, p).items():
+            for drive in ("rigid", "flexible"):
+                g = d[d["drive"] == drive]
+                esc = g[escape_cause(g) != ""]
+                lo, hi = esc[esc[axis] < p[axis]][axis], esc[esc[axis] > p[axis]][axis]
+                side = ([f"{axis} <= {lo.max():g}"] if len(lo) else []) + ([f"{axis} >= {hi.min():g}"] if len(hi) else [])
+                if side:
+                    out.append(f"{case} {drive}: {' and '.join(side)}")
+    return ("Nearest the working point (v = {:g} m/s, t_c = {:g} s), the named cases escape at ".format(p["v"], p["t_c"])
+            + "; ".join(out) + " (the escape at the working point itself: "
+            + ("none" if not _escapes_at_working_point(I) else ", ".join(_escapes_at_working_point(I))) + ").")
+
+
+def _escapes_at_working_point(I: ReportInputs) -> list:
+    p = I.base
+    d = I.f5a[np.isclose(I.f5a["v"], p["v"]) & np.isclose(I.f5a["t_c"], p["t_c"]) & (I.f5a["drive"] != "free")]
+    return [f"{r.case} {r.drive}" for r in d[d["outcome"] == "escaped"].itertuples()]
 
 
 def _runs_text(vals) -> str:
@@ -940,7 +971,8 @@ def _escape_text(I: ReportInputs) -> list[str]:
                         parts.append(f"{c}: {_runs_text(where.tolist())}")
                 L.append(f"| {case} | {drive} | {axis} (at {fixed} = {fval:g}) | {len(esc)} of {len(g)} | "
                          + "; ".join(parts) + " |")
-    L += ["", "Causes: " + "; ".join(f"**{c}**: {ESCAPE_CAUSES[c]}" for c in ESCAPE_CAUSES if c in seen) + ".", ""]
+    L += ["", "Causes: " + "; ".join(f"**{c}**: {ESCAPE_CAUSES[c]}" for c in ESCAPE_CAUSES if c in seen) + ".", "",
+          _nearest_escapes(I), ""]
     return L
 
 # ------------------------------------------------------------------ 2. design maps
