@@ -174,6 +174,7 @@ STYLE = {ENGINE: ("C0", "o", "-"), RK4: ("C7", "s", "--"), PEER: ("C3", "D", "-"
          "solve_ivp RK45": ("C2", "^", ":"), "solve_ivp DOP853": ("C4", "v", ":"),
          "solve_ivp LSODA": ("C1", "<", ":")}
 FLOOR = 1e-13   # plotted in place of an error of 0
+SLOW = 100      # a peer's scene that takes over SLOW x its median time is listed by name
 
 
 def plot(summary: pd.DataFrame, df: pd.DataFrame, path: Path) -> None:
@@ -185,7 +186,7 @@ def plot(summary: pd.DataFrame, df: pd.DataFrame, path: Path) -> None:
     per = df.groupby(["solver", "setting"], sort=False).agg(max_e=("e_max", "max"), med_e=("e_max", "median"))
     s = summary.set_index(["solver", "setting"]).join(per).reset_index()
     fig, axes = plt.subplots(1, 2, figsize=(12.5, 5.6), sharex=True, layout="constrained")
-    for ax, key, title in ((axes[0], "max_e", "worst scene"), (axes[1], "med_e", "median scene")):
+    for ax, key, title in ((axes[0], "max_e", "(a) worst scene"), (axes[1], "med_e", "(b) median scene")):
         for solver, g in s.groupby("solver", sort=False):
             color, marker, ls = STYLE.get(solver, ("k", "x", "-"))
             x, y = g["median ms per cycle"], g[key].clip(lower=FLOOR)
@@ -198,9 +199,10 @@ def plot(summary: pd.DataFrame, df: pd.DataFrame, path: Path) -> None:
         ax.axhline(tv.ERR_BOUND, color="k", lw=0.8, ls="--", label=f"validation bound {tv.ERR_BOUND:g} "
                    "(tests/test_validation.py)")
         ax.set_xlabel("CPU time per cycle [ms] (median over scenes)")
-        ax.set_ylabel(f"largest relative error of peak_force,\ndeflection_max, t_exit ({title})")
-        ax.set_title(f"{title} of {int(s.scenes.max())}", fontsize=10)
+        ax.set_title(f"{title} of {int(s.scenes.max())}: its largest relative error", fontsize=10)
         ax.grid(True, which="major", alpha=0.3)
+    # one y label for both panels (the panels' titles say which scene), so no label sits between them
+    axes[0].set_ylabel("largest relative error of peak_force, deflection_max, t_exit")
     fig.legend(*axes[0].get_legend_handles_labels(), loc="outside lower center", ncol=4, fontsize=8,
                title="each curve from its loosest setting (ringed) to its tightest", title_fontsize=8)
     fig.suptitle("Work-precision against the independent reference (validation scenes, fully resolved "
@@ -258,11 +260,12 @@ def _engine_prose(summary: pd.DataFrame, df: pd.DataFrame, d, ref_rtol: float) -
         f"peak_force error goes {' → '.join(f'{m:.2g}' for m in meds)}. At step_factor {tight.knob:g} the worst "
         f"scene is {tight['worst scene']}, and the median errors are {tight['median e(peak_force)']:.2g} "
         f"(peak_force), {tight['median e(deflection_max)']:.2g} (deflection_max), "
-        f"{tight['median e(t_exit)']:.2g} (t_exit), against a reference computed at rtol {ref_rtol:g}. (An "
-        "earlier version of this page reported an error floor and blamed it on a systematic difference between "
-        "the two implementations; it was a parameter mismatch: the reference rounded the default swing, and the "
-        "engine was given only each scene's overrides. Both are fixed: the reference uses the exact default "
-        "swing, and every solver here gets every resolved §12 value of the reference's row.)")
+        f"{tight['median e(t_exit)']:.2g} (t_exit), against a reference computed at rtol {ref_rtol:g}."
+        + (" (An earlier version of this page reported an error floor and blamed it on a systematic difference "
+           "between the two implementations; it was a parameter mismatch: the reference rounded the default "
+           "swing, and the engine was given only each scene's overrides. Both are fixed: the reference uses the "
+           "exact default swing, and every solver here gets every resolved §12 value of the reference's row.)"
+           if stop is None else ""))
     rk = summary[summary.solver == RK4]
     if len(rk) and d is not None:
         r0 = rk.iloc[-1]
@@ -297,9 +300,9 @@ def _peer_prose(summary: pd.DataFrame, df: pd.DataFrame, d) -> list[str]:
     lines.append("Its worst scene: " + "; ".join(
         f"{i} at rtol {', '.join(f'{k:g}' for k in h.knob)} (error {', '.join(f'{e:.2g}' for e in h.e_max)})"
         for i, h in worst.groupby("id", sort=False)) + ". ")
-    slow = pdf[pdf.time > 100 * pdf.time.median()]
+    slow = pdf[pdf.time > SLOW * pdf.time.median()]
     if len(slow):
-        lines.append("Scenes over 100x its median time, which make its mean (LSODA crawling on a load resting on a "
+        lines.append(f"Scenes over {SLOW:g}x its median time, which make its mean (LSODA crawling on a load resting on a "
                      "free fence, see results/lsoda_peer.md): " + "; ".join(
                          f"{i}: " + ", ".join(f"{t * 1e3:.0f} ms at rtol {k:g}" for k, t in zip(h.knob, h.time))
                          for i, h in slow.groupby("id", sort=False)) + ".")

@@ -57,18 +57,43 @@ def _case_title(df) -> str:
     return f"{p.get('case')}: {p.get('L'):g} x {p.get('A'):g} m load, dP = {p.get('dP'):g} m"
 
 
-def _mark_events(ax, ev, t_scale=1.0, y=None, label=True, color="k"):
-    """Vertical lines at A, B and the C's; letters at the top of the axes."""
-    trans = ax.get_xaxis_transform()
+def _levels(xs, min_sep: float) -> list:
+    """A stacking level (0, 1, 2, ...) for labels at the sorted positions xs: labels on one level
+    are at least min_sep apart, so neighbours close in x go one level up instead of overprinting."""
+    last: list = []
+    out = []
+    for x in xs:
+        k = next((k for k, lx in enumerate(last) if x - lx >= min_sep), len(last))
+        if k == len(last):
+            last.append(x)
+        else:
+            last[k] = x
+        out.append(k)
+    return out
+
+
+def _event_points(ev) -> list:
+    """[(t, letter)] of A, B and the C's (C1, C2, ... when there are several), sorted by time."""
     cs = [(t, f"C{k + 1}" if len(ev.C) > 1 else "C") for k, (t, _, _) in enumerate(ev.C)]
-    pts = sorted([(ev.A, "A"), (ev.B, "B")] + cs)
-    for k, (t, letter) in enumerate(pts):
-        if not math.isfinite(t):
-            continue
+    return sorted(p for p in [(ev.A, "A"), (ev.B, "B")] + cs if math.isfinite(p[0]))
+
+
+def _mark_events(ax, ev, t_scale=1.0, label=True, color="k") -> int:
+    """Vertical lines at A, B and the C's; letters above the axes, stacked where they are close
+    (call after the x limits are set). Returns the number of letter rows, for the title's pad."""
+    pts = _event_points(ev)
+    lo, hi = ax.get_xlim()
+    for t, _ in pts:
         ax.axvline(t * t_scale, color=color, lw=0.7, ls=":", zorder=1)
-        if label:
-            ax.text(t * t_scale, 1.01 if k % 2 == 0 else 1.08, letter, transform=trans, ha="center", va="bottom",
-                    fontsize=8, fontweight="bold", color=color)
+    shown = [(t, s) for t, s in pts if lo <= t * t_scale <= hi]
+    if not label or not shown:
+        return 0
+    lev = _levels([t * t_scale for t, _ in shown], 0.035 * (hi - lo))
+    for (t, letter), k in zip(shown, lev):
+        ax.annotate(letter, (t * t_scale, 1.0), xycoords=("data", "axes fraction"), xytext=(0, 2 + 10 * k),
+                    textcoords="offset points", ha="center", va="bottom", fontsize=8, fontweight="bold",
+                    color=color)
+    return max(lev) + 1
 
 
 def _shade_stages(ax, ev, alpha=0.6):
@@ -116,14 +141,17 @@ def _fig_impact(res: Path, out: Path, law: str) -> Path:
                 ax.plot([first["dt_onset"] * 1e3], [first["N_onset"] / 1e3], "o", ms=4, color=color)
         ff = rigid.attrs["results"]["freefall_force"] / 1e3
         ax.axhline(ff, color="0.4", lw=0.8, ls=":")
-        ax.text(0.02, ff, f"free fall from H = 0.3 m (e = 0.2): {ff:.1f} kN", ha="left", va="bottom",
-                fontsize=7, color="0.3", transform=ax.get_yaxis_transform())
+        rp = rigid.attrs["params"]
+        # the legend and the free-fall level's label in a band of their own above the line and the curves
+        ax.text(0.4, ff, f"free fall from H = {rp['H']:g} m (e = {rp['e']:g}): {ff:.1f} kN", ha="center",
+                va="bottom", fontsize=7, color="0.3", transform=ax.get_yaxis_transform())
         ax.set_xlim(-0.1 * window * 1e3, window * 1e3)
-        ax.set_ylim(0, 1.15 * max(ff, ax.get_ylim()[1]))
+        top = 1.6 * max(ff, ax.get_ylim()[1])
+        ax.set_ylim(0, top)
         ax.set_xlabel("time since first contact A, t - t_A [ms]")
         ax.set_ylabel("normal force of the load on the fence N [kN]")
         ax.grid(alpha=0.3)
-        ax.legend(loc="upper right", bbox_to_anchor=(1.0, 0.8))
+        ax.legend(loc="upper right", framealpha=0.95)
     extra = " Dots: the force at the first integrator step after contact (the jump of the linear law)." \
         if law == "linear" else ""
     fig.suptitle(f"Paper Fig. {'2' if law == 'linear' else '3'}: force of the first impact, {law_text}\n"
@@ -147,7 +175,7 @@ def fig3(res: Path, out: Path) -> Path:
 def fig4(res: Path, out: Path) -> Path:
     """Paper Fig. 4: drive input alpha_w and the moment of the load on the fence, both cases."""
     plt = _plt()
-    fig, axes = plt.subplots(3, 1, figsize=(9, 8.6), gridspec_kw={"height_ratios": [0.7, 1, 1]})
+    fig, axes = plt.subplots(3, 1, figsize=(9, 9.2), gridspec_kw={"height_ratios": [0.7, 1, 1]})
     base = RP.read_traj(res, "small_far_flexible")
     tc = base.attrs["params"]["t_c"]
     ax = axes[0]
@@ -166,7 +194,6 @@ def fig4(res: Path, out: Path) -> Path:
         ax.plot(rig["t"], rig["M_fence"], color=DRIVE_COLORS["rigid"], lw=0.9, ls="--", label="rigid fence")
         ax.plot(flex["t"], flex["M_fence"], color=DRIVE_COLORS["flexible"], lw=1.3,
                 label="flexible fence, B2 = 72, K2 = 570")
-        _mark_events(ax, ev)
         ax.set_ylabel("moment M [N m]")
         ax.set_xlabel("time t [s]")
         if case == "small_far":  # the impact and the brushing last 0.1 s of the cycle: zoom, log scale
@@ -176,11 +203,13 @@ def fig4(res: Path, out: Path) -> Path:
         else:
             ax.set_xlim(0, tc)
             zoom = ""
-        ax.set_title(f"({letter}) {_case_title(flex)}{zoom}", pad=12)
+        rows = _mark_events(ax, ev)
+        ax.set_title(f"({letter}) {_case_title(flex)}{zoom}", pad=6 + 10 * rows)
         ax.grid(alpha=0.3)
         mx = max(flex["M_fence"].max(), rig["M_fence"].max())
         ax.text(0.01, 0.95, f"peak {flex['M_fence'].max():.0f} N m (flexible), {rig['M_fence'].max():.0f} N m (rigid)",
-                transform=ax.transAxes, va="top", fontsize=8)
+                transform=ax.transAxes, va="top", fontsize=8,
+                bbox={"boxstyle": "round,pad=0.2", "fc": "white", "ec": "none", "alpha": 0.8})
         ax.set_ylim(min(0.0, flex["M_fence"].min()) * 1.1, mx * (3.0 if case == "small_far" else 1.12))
     h, lab = axes[2].get_legend_handles_labels()
     axes[2].legend(handles=h + _stage_legend_handles(stages), loc="upper right", ncol=2,
@@ -195,55 +224,96 @@ def fig4(res: Path, out: Path) -> Path:
 
 # ---------------------------------------------------------------------------- Fig 5a
 def fig5a(res: Path, out: Path) -> Path:
-    """Paper Fig. 5a: overload against v (t_c = 1.36 s) and t_c (v = 2 m/s); rigid, flexible, free."""
+    """Paper Fig. 5a: overload against v (t_c = 1.36 s) and t_c (v = 2 m/s); rigid, flexible, free. The named
+    cases, and (when its tables are there) the worst over the load's placements, the paper's §4.1 arrangement."""
     plt = _plt()
     df = RP.read_table(res, "fig5a")
     ff = RP.read_table(res, "freefall_H").sort_values("H")
     ref = float(ff.loc[(ff["H"] - 0.3).abs().idxmin(), "peak_force"])
-    levels = [(h, float(ff.loc[(ff["H"] - h).abs().idxmin(), "peak_force"]) / ref) for h in (0.1, 0.2, 0.3)]
+    levels = [(h, float(ff.loc[(ff["H"] - h).abs().idxmin(), "peak_force"]) / ref) for h in RP.FREEFALL_LEVELS_H]
     cases = [c for c in RP.CASES if c in set(df["case"])]
-    fig, axes = plt.subplots(len(cases), 2, figsize=(10, 3.6 * len(cases)), squeeze=False)
+    worst = {axis: RP.worst_over_placements(RP.read_table(res, n)) for n, axis in RP.WORST_TABLES.items()
+             if RP.table_path(res, n).exists()}
+    nrow = len(cases) + (1 if worst else 0)
+    fig, axes = plt.subplots(nrow, 2, figsize=(10, 3.6 * nrow), squeeze=False)
     tc0 = min(set(df["t_c"]), key=lambda x: abs(x - 1.36))
     v0 = min(set(df["v"]), key=lambda x: abs(x - 2.0))
+    cuts = (("v", "t_c", tc0, "belt speed v [m/s]"), ("t_c", "v", v0, "work cycle time t_c [s]"))
+    ymax = max(1.15, float(df["overload"].max()) * 1.08)
     for r, case in enumerate(cases):
         d = df[df["case"] == case]
-        for c, (axis, fixed, fval, label) in enumerate((("v", "t_c", tc0, "belt speed v [m/s]"),
-                                                        ("t_c", "v", v0, "work cycle time t_c [s]"))):
+        for c, (axis, fixed, fval, label) in enumerate(cuts):
             ax = axes[r, c]
             for drive in ("rigid", "flexible", "free"):
                 s = d[(d["drive"] == drive) & (d[fixed] == fval)].sort_values(axis)
                 if s.empty or (drive == "free" and not (s["t_first_contact"] > 1e-3).any()):
                     continue  # a load touching at t = 0 releases the free fence at once: nothing to show
-                col = DRIVE_COLORS[drive]
-                ax.plot(s[axis], s["overload"], color=col, lw=1.4, label=DRIVE_LABELS[drive])
-                ok = s["outcome"] == "scraped"
-                ax.plot(s[axis][ok], s["overload"][ok], "o", ms=3.5, color=col)
-                ax.plot(s[axis][~ok], s["overload"][~ok], "x", ms=6, mew=1.5, color=col)
-            for h, lev in levels:
-                ax.axhline(lev, color="0.35", lw=0.9, ls="--")
-                ax.text(1.01, lev, f"H = {h:g} m", va="center", fontsize=7, color="0.3",
-                        transform=ax.get_yaxis_transform())
+                _overload_curve(ax, s, axis, drive)
             if case == "long_near":
-                ax.text(0.02, 0.97, "free fence not shown: this load touches the fence at t = 0, which releases "
+                ax.text(0.02, 0.97, "free fence not shown: this load touches the fence at t = 0,\nwhich releases "
                         "it at once", transform=ax.transAxes, fontsize=7, va="top", color=DRIVE_COLORS["free"])
-            ax.set_xlabel(label)
-            ax.set_ylabel("overload [-]")
             unit = "s" if fixed == "t_c" else "m/s"
-            ax.set_title(f"{case}: against {axis} at {fixed} = {fval:g} {unit}")
-            ax.grid(alpha=0.3)
-            ax.set_ylim(0, max(1.15, float(d["overload"].max()) * 1.08))
+            _fig5a_axes(ax, levels, label, f"{case}: against {axis} at {fixed} = {fval:g} {unit}", ymax)
+    if worst:
+        _fig5a_worst_row(axes[-1], worst, df[df["case"] == "small_far"], cuts, levels,
+                         max(ymax, max(float(w["overload"].max()) for w in worst.values()) * 1.08))
     from matplotlib.lines import Line2D
 
     h, lab = axes[0, 0].get_legend_handles_labels()
     h += [Line2D([], [], ls="", marker="o", color="0.3", ms=4), Line2D([], [], ls="", marker="x", color="0.3", ms=6),
           Line2D([], [], ls="--", color="0.35")]
-    lab += ["load scraped", "load NOT scraped (escaped)", "free fall from H = 0.1 / 0.2 / 0.3 m"]
+    lab += ["load scraped", "load NOT scraped (escaped)",
+            f"free fall from H = {' / '.join(f'{x:g}' for x in RP.FREEFALL_LEVELS_H)} m"]
+    if worst:
+        h += [Line2D([], [], ls=":", color="0.3", lw=0.8),
+              Line2D([], [], ls="", marker="o", ms=9, mfc="none", color="0.3")]
+        lab += ["bottom row, dotted: the named small_far (top row)",
+                "bottom row, ringed: two fence contact points at once (S3) in that contact"]
     fig.legend(h, lab, loc="lower center", ncol=3, fontsize=8, bbox_to_anchor=(0.5, -0.01))
     fig.suptitle("Paper Fig. 5a: overload = peak fence force / peak of a free fall from H = 0.3 m (m1 = 15 kg, "
                  "m2 = 5 kg)\nThe free fence is released at the first contact (an idealisation of the impact, "
                  "not a working drive)")
-    fig.tight_layout(rect=(0, 0.06, 1, 1))
+    fig.tight_layout(rect=(0, 0.08 if worst else 0.06, 1, 1))
     return _save(fig, out, "fig5a_overload_v_tc.png")
+
+
+def _fig5a_worst_row(axes, worst: dict, sf, cuts, levels, ymax: float) -> None:
+    """Fig. 5a's bottom row: the worst overload over the load's placements (§4.1), the named small_far dotted."""
+    for ax, (axis, fixed, fval, label) in zip(axes, cuts):
+        if axis not in worst:
+            ax.axis("off")
+            continue
+        w = worst[axis]
+        for drive in ("rigid", "flexible", "free"):
+            named = sf[(sf["drive"] == drive) & (sf[fixed] == fval)].sort_values(axis)
+            ax.plot(named[axis], named["overload"], color=DRIVE_COLORS[drive], lw=0.8, ls=":")
+            s = w[w["drive"] == drive].sort_values(axis)
+            _overload_curve(ax, s, axis, drive)
+            two = s[s["two_points"]]
+            ax.plot(two[axis], two["overload"], "o", ms=9, mfc="none", mew=0.9, color=DRIVE_COLORS[drive])
+        unit = "s" if fixed == "t_c" else "m/s"
+        _fig5a_axes(ax, levels, label, f"worst of {int(w['n_placements'].iloc[0])} placements of the small_far "
+                    f"load (paper §4.1)\nagainst {axis} at {fixed} = {fval:g} {unit}", ymax)
+
+
+def _overload_curve(ax, s, axis: str, drive: str) -> None:
+    """One drive's overload along a cut: line, dots where the load is scraped, crosses where it is not."""
+    col = DRIVE_COLORS[drive]
+    ax.plot(s[axis], s["overload"], color=col, lw=1.4, label=DRIVE_LABELS[drive])
+    ok = s["outcome"] == "scraped"
+    ax.plot(s[axis][ok], s["overload"][ok], "o", ms=3.5, color=col)
+    ax.plot(s[axis][~ok], s["overload"][~ok], "x", ms=6, mew=1.5, color=col)
+
+
+def _fig5a_axes(ax, levels, xlabel: str, title: str, ymax: float) -> None:
+    for h, lev in levels:
+        ax.axhline(lev, color="0.35", lw=0.9, ls="--")
+        ax.text(1.01, lev, f"H = {h:g} m", va="center", fontsize=7, color="0.3", transform=ax.get_yaxis_transform())
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel("overload [-]")
+    ax.set_title(title)
+    ax.grid(alpha=0.3)
+    ax.set_ylim(0, ymax)
 
 
 # ---------------------------------------------------------------------------- Fig 5b
@@ -311,8 +381,9 @@ def fig6(res: Path, out: Path) -> Path:
     h += [Line2D([], [], ls="", marker="o", color="0.3", ms=4), Line2D([], [], ls="", marker="x", color="0.3", ms=6)]
     lab += ["scraped", "NOT scraped (escaped)"]
     axes[0].legend(h, lab, loc="center right")
-    fig.suptitle(f"Paper Fig. 6: the springy-damping element at relative damping Psi = 1\n"
-                 f"(K2 = B2^2 / (4 I2), I2 = 2.4 kg m^2), {WORKING_POINT}, m2 = 5 kg")
+    fig.suptitle("Paper Fig. 6: the springy-damping element at relative damping Psi = 1\n"
+                 "(K2 = B2^2 / (4 I2)" + (f", I2 = {float(df['I2'].iloc[0]):.3g} kg m^2" if "I2" in df else "")
+                 + f"), {WORKING_POINT}, m2 = 5 kg")
     fig.tight_layout()
     return _save(fig, out, "fig6_psi1_b2.png")
 
@@ -321,7 +392,8 @@ def fig6(res: Path, out: Path) -> Path:
 def fig7(res: Path, out: Path) -> Path:
     """Paper Fig. 7: fence angle alpha and drive angle alpha_w against time, A, B, C marked."""
     plt = _plt()
-    fig, axes = plt.subplots(2, 2, figsize=(11, 6.4), sharex="col", gridspec_kw={"height_ratios": [1.4, 1]})
+    fig, axes = plt.subplots(2, 2, figsize=(11, 7.0), sharex="col", gridspec_kw={"height_ratios": [1.4, 1]})
+    stages: set = set()
     for col, case in enumerate(RP.CASES):
         flex = RP.read_traj(res, f"{case}_flexible")
         rig = RP.read_traj(res, f"{case}_rigid")
@@ -333,16 +405,18 @@ def fig7(res: Path, out: Path) -> Path:
         ax = axes[0, col]
         ax.plot(t, aw, color="k", lw=1.1, ls="--", label="alpha_w, drive (= alpha of the rigid fence)")
         ax.plot(t, al, color=DRIVE_COLORS["flexible"], lw=1.5, label="alpha, flexible fence 72/570")
-        cs = [(tc, f"C{k + 1}" if len(ev.C) > 1 else "C") for k, (tc, _, _) in enumerate(ev.C)]
-        pts = sorted([(ev.A, "A"), (ev.B, "B")] + cs)
-        for k, (tt, letter) in enumerate(pts):
-            if math.isfinite(tt):
-                y = float(np.interp(tt, t, al))
-                ax.plot([tt], [y], "o", ms=5, color="k", zorder=5)
-                up = k % 2 == 0
-                ax.annotate(letter, (tt, y), xytext=(0, 14 if up else -16), textcoords="offset points", fontsize=8,
-                            fontweight="bold", ha="center", va="center",
-                            arrowprops={"arrowstyle": "-", "lw": 0.5, "color": "0.3"})
+        pts = _event_points(ev)
+        ymax = max(al.max(), aw.max())
+        # letters below the curve (the legend is above it; near alpha = 0, where the contact bars are,
+        # above it), stacked where events are close in time
+        lev = _levels([tt for tt, _ in pts], 0.045 * float(flex.attrs["params"]["t_c"]))
+        for (tt, letter), k in zip(pts, lev):
+            y = float(np.interp(tt, t, al))
+            ax.plot([tt], [y], "o", ms=5, color="k", zorder=5)
+            sign = 1 if y < 0.2 * ymax else -1
+            ax.annotate(letter, (tt, y), xytext=(0, sign * (14 + 11 * k)), textcoords="offset points", fontsize=8,
+                        fontweight="bold", ha="center", va="center",
+                        arrowprops={"arrowstyle": "-", "lw": 0.5, "color": "0.3", "shrinkB": 3})
         # contact intervals (the paper's Delta t2): rigid and flexible
         ymax = max(al.max(), aw.max())
         for k, (e, name, c) in enumerate(((evr, "contact, rigid", DRIVE_COLORS["rigid"]),
@@ -350,7 +424,7 @@ def fig7(res: Path, out: Path) -> Path:
             yb = -0.08 * ymax - k * 0.07 * ymax
             ax.plot([e.A, e.B], [yb, yb], color=c, lw=4, solid_capstyle="butt")
             ax.text(e.B, yb, f"  {name}: {e.B - e.A:.3f} s", va="center", fontsize=7, color=c)
-        ax.set_ylim(-0.25 * ymax, 1.4 * ymax)
+        ax.set_ylim(-0.3 * ymax, 1.4 * ymax)
         ax.set_ylabel("angle [deg]")
         ax.set_title(_case_title(flex))
         ax.grid(alpha=0.3)
@@ -359,23 +433,25 @@ def fig7(res: Path, out: Path) -> Path:
         _shade_stages(ax, ev)
         ax.plot(t, al - aw, color=DRIVE_COLORS["flexible"], lw=1.3)
         ax.axhline(0, color="k", lw=0.6)
-        _mark_events(ax, ev)
         tc = flex.attrs["params"]["t_c"]
+        ax.set_xlim(0, tc)
+        _mark_events(ax, ev)
+        stages |= {s for _, _, s in ev.runs}
         resid = math.degrees(flex.attrs["results"]["residual_deflection"])
-        ax.annotate(f"residual at t_c: {resid:.2f} deg", (tc, float(np.interp(tc, t, al - aw))),
-                    xytext=(-110, 18), textcoords="offset points", fontsize=7,
-                    arrowprops={"arrowstyle": "->", "lw": 0.6})
+        # the label in the lower right corner, away from the curve (which ends near 0), an arrow to the point
+        ax.annotate(f"residual deflection at t_c: {resid:.2f} deg", (tc, float(np.interp(tc, t, al - aw))),
+                    xytext=(0.97, 0.06), textcoords="axes fraction", ha="right", va="bottom", fontsize=7,
+                    arrowprops={"arrowstyle": "->", "lw": 0.6, "shrinkA": 2})
         ax.set_ylabel("deflection alpha - alpha_w [deg]")
         ax.set_xlabel("time t [s]")
-        ax.set_xlim(0, tc)
         ax.grid(alpha=0.3)
-        if col == 1:
-            ax.legend(handles=_stage_legend_handles({s for _, _, s in ev.runs}), loc="lower right", fontsize=7,
-                      title="stage", title_fontsize=7)
+    fig.legend(handles=_stage_legend_handles(stages), loc="lower center", ncol=len(stages), fontsize=7,
+               title="shaded: stage of the flexible run (MODEL.md §10)", title_fontsize=7,
+               bbox_to_anchor=(0.5, 0.0))
     fig.suptitle(f"Paper Fig. 7: response of the fence, flexible element B2 = 72 N m s/rad, K2 = 570 N m/rad, "
                  f"{WORKING_POINT}\nA first contact, B last loss of contact, C stage change; bars: time in contact "
                  "(rigid vs flexible)")
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0.05, 1, 1))
     return _save(fig, out, "fig7_fence_response.png")
 
 
@@ -412,7 +488,7 @@ def fig8(res: Path, out: Path) -> Path:
             live = df[df["stage"] >= 0]
             col = DRIVE_COLORS[drive]
             ax.plot(live["x"], live["y"], ls=ls, color=col, lw=1.6,
-                    label=f"{drive}: centroid path, exit at x = {r['x_exit']:.2f} m, contact {r['contact_time']:.2f} s")
+                    label=f"{drive}: centroid path,\nexit at x = {r['x_exit']:.2f} m,\ncontact {r['contact_time']:.2f} s")
             last = live.iloc[-1]
             o = _outline(p["L"], p["A"], last["x"], last["y"], last["phi"])
             ax.fill(o[:, 0], o[:, 1], color=col, alpha=0.25, lw=0)
@@ -439,7 +515,8 @@ def fig8(res: Path, out: Path) -> Path:
         ax.set_xlabel("x along the belt [m]")
         ax.set_ylabel("y across the belt [m]")
         ax.set_title(f"{_case_title(RP.read_traj(res, f'{case}_rigid'))}: load and fence at the exit (shaded)")
-        ax.legend(loc="center left", fontsize=7, bbox_to_anchor=(0.0, 0.55))
+        # outside, to the right: inside, every free spot of one case is taken by a path or a fence in the other
+        ax.legend(loc="center left", fontsize=7, bbox_to_anchor=(1.01, 0.5), frameon=False)
     fig.suptitle(f"Paper Fig. 8: path of the load's centroid, rigid vs flexible fence (72/570), {WORKING_POINT}")
     fig.tight_layout()
     return _save(fig, out, "fig8_load_path.png")
@@ -672,6 +749,7 @@ STREAM_ELEMENTS = (("paper 72/570", dict(B2=72.0, K2=570.0), "#d62728", "-"),
                    ("recommended 15/2075", dict(B2=15.0, K2=2075.0), "#1a9850", "-"),
                    ("well-damped 140/2075", dict(B2=140.0, K2=2075.0), "#4575b4", "--"))
 STREAM_FIGURE_CYCLES = 10
+STREAM_FIGURE_TC = (1.36, 1.0)  # [s] the work cycle times of the figure's two panels (T = t_c)
 
 
 def stream(res: Path, out: Path) -> Path:
@@ -682,7 +760,7 @@ def stream(res: Path, out: Path) -> Path:
     plt = _plt()
     loads = ["small_far", "long_near"] * (STREAM_FIGURE_CYCLES // 2)
     fig, axes = plt.subplots(2, 1, figsize=(13, 7.5), layout="constrained")
-    for ax, tc in zip(axes, (1.36, 1.0)):
+    for ax, tc in zip(axes, STREAM_FIGURE_TC):
         for label, params, color, ls in STREAM_ELEMENTS:
             r, df = simulate_resolved(resolve("stream", loads=loads, t_c=tc, period=tc, **params), trajectory=True)
             amp = math.degrees(r["worst_start_amplitude"])
@@ -691,14 +769,16 @@ def stream(res: Path, out: Path) -> Path:
                           f"{r['n_scraped']}/{r['n_cycles']} scraped")
         for k in range(STREAM_FIGURE_CYCLES + 1):
             ax.axvline(k * tc, color="0.6", lw=0.6, ls=":")
+        lo, hi = ax.get_ylim()
+        ax.set_ylim(lo, hi + 0.12 * (hi - lo))  # a band at the top for the loads' names, above the curves
         for k in range(STREAM_FIGURE_CYCLES):
-            ax.text((k + 0.5) * tc, 0.03, "small_far" if k % 2 == 0 else "long_near",
-                    transform=ax.get_xaxis_transform(), ha="center", va="bottom", fontsize=7, color="0.35")
+            ax.text((k + 0.5) * tc, 0.98, "small_far" if k % 2 == 0 else "long_near",
+                    transform=ax.get_xaxis_transform(), ha="center", va="top", fontsize=7, color="0.35")
         ax.axhline(0, color="k", lw=0.6)
         ax.set_xlim(0, STREAM_FIGURE_CYCLES * tc)
         ax.set_xlabel("time t [s] (dotted: the start of each cycle, t_k = k T)")
         ax.set_ylabel("deflection alpha - alpha_w [deg]")
-        ax.set_title(f"t_c = T = {tc:g} s ({3600 / tc:.0f} packages/h), the load of each cycle at the bottom",
+        ax.set_title(f"t_c = T = {tc:g} s ({3600 / tc:.0f} packages/h), the load of each cycle at the top",
                      fontsize=9)
         ax.grid(alpha=0.3)
         ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7, frameon=False)
@@ -754,6 +834,16 @@ def _arrow(ax, head, vec, color):
                                  color=color, lw=1.6, zorder=7, clip_on=False))
 
 
+def _force_label(ax, tail, u, text, color):
+    """A force's value just beyond its arrow's tail, on the far side along u (the unit vector from
+    the head to the tail), so the text never lies on the arrow, the fence or the load."""
+    x, y = tail + 0.03 * u
+    ha = "left" if u[0] > 0.35 else ("right" if u[0] < -0.35 else "center")
+    va = "bottom" if u[1] > 0.35 else ("top" if u[1] < -0.35 else "center")
+    ax.text(x, y, text, fontsize=7, color=color, ha=ha, va=va, zorder=8,
+            bbox={"boxstyle": "round,pad=0.1", "fc": "white", "ec": "none", "alpha": 0.8})
+
+
 def _cycle(res: Path, out: Path, case: str) -> Path:
     plt = _plt()
     df = RP.read_traj(res, f"{case}_flexible")
@@ -762,9 +852,9 @@ def _cycle(res: Path, out: Path, case: str) -> Path:
     inst = _instants(df, 8)
     t = df["t"].to_numpy()
     nmax = max(float(df["N_fence"].max()), float(df["N_rail"].max()), 1e-9)
-    fig, axes = plt.subplots(4, 2, figsize=(10, 9.0))
+    fig, axes = plt.subplots(4, 2, figsize=(8.6, 10.0))
     xlim = (-0.8, 1.6)
-    ylim = (-0.3, p["P_max"] + 0.25)
+    ylim = (-0.5, p["P_max"] + 0.3)  # room under the belt for the rail's and the pivot's force labels
     for k, (ax, (tt, label)) in enumerate(zip(axes.flat, inst)):
         i = min(int(np.searchsorted(t, tt - 1e-12)), len(t) - 1)
         row = df.iloc[i]
@@ -786,15 +876,14 @@ def _cycle(res: Path, out: Path, case: str) -> Path:
             s = min(max(float(row["M_fence"]) / nf, 0.0), p["l"])
             ln = 0.06 + 0.24 * math.sqrt(nf / nmax)
             _arrow(ax, s * d, ln * nvec, "#2166ac")
-            tail = s * d - (ln + 0.04) * nvec
-            ax.text(*tail, f"{nf:.0f} N" if nf < 1e3 else f"{nf / 1e3:.2f} kN", fontsize=7, color="#2166ac",
-                    ha="center", va="center")
+            _force_label(ax, s * d - ln * nvec, -nvec, f"{nf:.0f} N" if nf < 1e3 else f"{nf / 1e3:.2f} kN",
+                         "#2166ac")
         if nr > 0:
             xs, ys = o[:-1, 0], o[:-1, 1]
             j = int(np.argmin(np.where(xs <= 0.0, ys, np.inf)))
             ln = 0.06 + 0.18 * math.sqrt(nr / nmax)
             _arrow(ax, np.array([xs[j], 0.0]), np.array([0.0, ln]), "#1b7837")
-            ax.text(xs[j] + 0.04, -ln, f"rail {nr:.0f} N", fontsize=7, color="#1b7837", ha="left", va="center")
+            _force_label(ax, np.array([xs[j], -ln]), np.array([0.0, -1.0]), f"rail {nr:.0f} N", "#1b7837")
         stage = "after the exit" if gone else f"stage {RP.STAGE_NAMES.get(int(row['stage']), '?')}"
         ax.set_title(f"{k + 1}. t = {row['t']:.3f} s" + (f", {label}" if label else "") + f"; {stage}\n"
                      f"alpha = {math.degrees(al):.1f} deg, alpha - alpha_w = {math.degrees(al - aw):+.1f} deg",

@@ -24,7 +24,7 @@ export FENCESWEEP_REGEN_START="$(date +%s)"
 rm -rf results/traj results/REPORT.md
 rm -f results/figures/fig[2-8]*.png results/figures/map_*.png results/figures/cycle_*.png \
       results/figures/recommended.png results/figures/stream_deflection.png   # its own figures only (benchmarks write there too)
-SPECS=(b2k2 psi_b2 fig5a fig5b freefall_H period)   # fencesweep.report.TABLES
+SPECS=(b2k2 psi_b2 fig5a fig5b freefall_H period fig5a_worst_v fig5a_worst_tc)   # fencesweep.report.TABLES
 for spec in "${SPECS[@]}"; do rm -f "results/$spec.parquet"; done
 
 # 2. sweeps (one Parquet table each; sweeps/README.md)
@@ -33,7 +33,8 @@ for spec in "${SPECS[@]}"; do
   echo "results/$spec.parquet"
 done
 
-# 3. the single cycles the figures need (after b2k2: the recommended element is read off it)
+# 3. the single cycles the figures need (after b2k2 and fig5a_worst_v: the recommended element and the
+#    worst placements are read off them)
 fencesweep plot trajectories --results results
 
 # 4. figures and the report

@@ -50,8 +50,16 @@ def _tables(res: Path) -> None:
                     ov = k * v / 2 * (1.36 / t_c)
                     f5a.append(dict(case=case, drive=drive, t_c=t_c, v=v, overload=ov, peak_force=ov * 6414.0,
                                     outcome="scraped" if drive != "free" else "escaped",
-                                    t_first_contact=0.46 if case == "small_far" else 0.0))
+                                    t_first_contact=0.46 if case == "small_far" else 0.0, contact_time=0.1,
+                                    n_impacts=1, R_s=0.0, dP=0.6 if case == "small_far" else 0.0, l=1.2, A=0.1))
     pd.DataFrame(f5a).to_parquet(res / "fig5a.parquet")
+    for name, axis in RP.WORST_TABLES.items():  # the worst-case placements of Fig. 5a: two per point of a cut
+        vals = (1.0, 2.0, 3.0) if axis == "v" else (1.0, 1.36, 2.0)
+        rows = [dict(drive=drive, v=x if axis == "v" else 2.0, t_c=x if axis == "t_c" else 1.36, dP=dP, R_s=0.0,
+                     overload=k * (1.2 if dP == 0.5 else 1.0), peak_force=k * 6414.0, outcome="scraped",
+                     t_S3=0.01 if (drive == "rigid" and dP == 0.5) else 0.0)
+                for drive, k in (("rigid", 1.1), ("flexible", 0.7), ("free", 0.65)) for x in vals for dP in (0.5, 0.6)]
+        pd.DataFrame(rows).to_parquet(res / f"{name}.parquet")
     f5b = [dict(m2=m, drive=d, peak_force=5087.0 if d == "rigid" else 5087.0 / (1 + 3.7 / m ** 0.5))
            for m in (1.0, 5.0, 50.0) for d in ("rigid", "free", "flexible")]
     pd.DataFrame(f5b).to_parquet(res / "fig5b.parquet")
@@ -170,3 +178,96 @@ def test_plots_import_without_matplotlib():
             "import fencesweep.plots, fencesweep.cli\n"
             "ap = fencesweep.cli.build_parser(); ap.parse_args(['plot', 'all'])\n")
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+# ---------------------------------------------------------------------------- the report's numbers
+def test_report_numbers_follow_the_tables(results, tmp_path):
+    """The Fig. 6 sentence is computed from psi_b2 and flips with it; nothing in it is typed."""
+    import shutil
+
+    res = tmp_path / "res"
+    shutil.copytree(results, res)
+    text = RP.write_report(res).read_text()
+    psi = pd.read_parquet(res / "psi_b2.parquet")
+    sf = psi[psi.case == "small_far"]
+    assert f"to at most {sf.damper_energy.max():.1f} J" in text      # small_far's energy rises with B2 here
+    assert "the energy trend depends on the load" in text
+    psi.loc[psi.case == "small_far", "damper_energy"] = 10 / psi.B2   # now it falls, like long_near's
+    psi.to_parquet(res / "psi_b2.parquet")
+    text = RP.write_report(res).read_text()
+    assert "the energy trend is the paper's for both loads" in text
+    assert "the energy trend depends on the load" not in text
+
+
+def test_report_fig5a_section(results):
+    text = RP.write_report(results).read_text()
+    part = text.split("### Fig. 5a")[1].split("## 2.")[0]
+    w = RP.worst_over_placements(pd.read_parquet(results / "fig5a_worst_v.parquet"))
+    wp = w[(w.t_c == 1.36) & (w.v == 2.0)].set_index("drive")
+    assert f"{wp.loc['rigid', 'overload']:.3f} (dP = 0.5" in part   # the worst placement's overload, read off
+    assert "had two fence contact points at once" in part and "| small_far | free |" in part
+
+
+def test_worst_over_placements_takes_the_largest():
+    df = pd.DataFrame(dict(drive=["rigid"] * 3 + ["free"] * 2, t_c=1.36, v=2.0, dP=[0.1, 0.2, 0.3, 0.1, 0.2],
+                           R_s=0.0, overload=[0.5, 0.9, 0.7, 0.4, 0.3], t_S3=[0.0, 0.01, 0.0, 0.0, 0.0]))
+    w = RP.worst_over_placements(df).set_index("drive")
+    assert w.loc["rigid", "dP"] == 0.2 and w.loc["rigid", "two_points"] and w.loc["rigid", "n_placements"] == 3
+    assert w.loc["free", "overload"] == 0.4 and not w.loc["free", "two_points"]
+
+
+def test_escape_causes_read_off_the_row():
+    base = dict(outcome="escaped", drive="rigid", R_s=0.0, dP=0.6, l=1.2, A=0.1, t_c=1.36, n_impacts=1,
+                contact_time=0.01)
+    xt = math.sqrt(1.2 ** 2 - 0.6 ** 2)
+    rows = [dict(base, outcome="scraped", v=2.0, t_first_contact=0.43),
+            dict(base, v=3.0, t_first_contact=math.nan, n_impacts=0),       # never touched
+            dict(base, drive="free", v=2.0, t_first_contact=0.43),
+            dict(base, v=2.5, t_first_contact=(xt + 0.03) / 2.5),           # corner 3 cm past the tip
+            dict(base, v=2.4, t_first_contact=(xt - 0.01) / 2.4),           # corner 1 cm short of it
+            dict(base, v=1.0, t_first_contact=0.5, contact_time=0.2),       # B = 0.7 > t_c / 2
+            dict(base, v=1.0, t_first_contact=0.3)]                         # none of these
+    got = RP.escape_cause(pd.DataFrame(rows)).tolist()
+    assert got == ["", "no_contact", "free", "tip", "at_tip", "late", "other"]
+    assert set(got) - {""} <= set(RP.ESCAPE_CAUSES)
+
+
+def test_jump_is_explained_only_when_the_corner_passes_the_tip(results, tmp_path):
+    import shutil
+
+    res = tmp_path / "res"
+    shutil.copytree(results, res)
+    f5a = pd.read_parquet(res / "fig5a.parquet")
+    xt = math.sqrt(1.2 ** 2 - 0.6 ** 2)
+    jump = (f5a.case == "small_far") & (f5a.v == 3.0)
+    f5a.loc[jump, "overload"] *= 0.2                                   # the overload collapses from v = 2 to 3
+    f5a.loc[(f5a.case == "small_far") & (f5a.v == 2.0), "t_first_contact"] = (xt - 0.05) / 2.0
+    f5a.loc[jump, "t_first_contact"] = (xt + 0.05) / 3.0                # and the corner passes the tip there
+    f5a.to_parquet(res / "fig5a.parquet")
+    part = RP.write_report(res).read_text().split("**The jumps")[1].split("**The escapes")[0]
+    along_v = part.split("Along t_c")[0]
+    assert f"{xt - 0.05:.3f} m before the step and {xt + 0.05:.3f} m after it" in along_v
+    assert "already past the tip" in along_v
+    f5a.loc[jump, "t_first_contact"] = (xt - 0.1) / 3.0                 # the same jump, the corner short of the tip
+    f5a.to_parquet(res / "fig5a.parquet")
+    along_v = RP.write_report(res).read_text().split("**The jumps")[1].split("Along t_c")[0]
+    assert "this jump has another cause" in along_v and "already past the tip" not in along_v
+
+
+def test_residual_reason_is_computed():
+    text = RP.residual_reason(1.0, 15.0, 1.2, 0.1)
+    assert "6.7% of the permitted deflection (15 deg)" in text and "21 mm off the rail line" in text
+    assert "42 mm" in RP.residual_reason(2.0, 15.0, 1.2, 0.1)
+
+
+def test_report_reads_where_the_worst_placements_peak(results, tmp_path):
+    import shutil
+
+    res = tmp_path / "res"
+    shutil.copytree(results, res)
+    for drive, stage in (("rigid", 2), ("flexible", 0)):
+        df, vals, r = _trajectory("small_far", {"drive": drive, "dP": 0.5, "R_s": 0.3})
+        df.loc[df["N_fence"].idxmax(), "stage"] = stage
+        store.write_trajectory(df, RP.traj_path(res, f"worst_{drive}"), vals, r)
+    text = RP.write_report(res).read_text()
+    assert "peak in stage S3 (rigid, dP = 0.5, R_s = 0.3 m" in text and "S1 (flexible, dP = 0.5" in text
