@@ -244,6 +244,63 @@ def cmd_design(args: argparse.Namespace) -> int:
     return 0
 
 
+def add_sensitivity_parser(sub) -> argparse.ArgumentParser:
+    g = sub.add_parser("sensitivity", help="Sobol indices of an element's worst results to the assumed inputs",
+                       description="Run a spec's sensitivity: section (Saltelli sample of the assumed inputs crossed "
+                                   "with its envelope, as a sweep) and write the Sobol indices S1 and ST (SALib: "
+                                   "pip install 'fencesweep[sensitivity]').")
+    g.add_argument("spec", metavar="SPEC.yaml", help="a spec with envelope: and sensitivity: sections")
+    g.add_argument("--out", metavar="PATH.parquet", help="the indices table (default: the section's output)")
+    g.add_argument("--jobs", type=int, default=None, metavar="N", help="worker processes (default: all cores)")
+    g.add_argument("--quiet", action="store_true", help="no progress bar and no summary")
+    g.set_defaults(func=cmd_sensitivity)
+    return g
+
+
+def cmd_sensitivity(args: argparse.Namespace) -> int:
+    from . import sensitivity as SA
+
+    if args.jobs is not None and args.jobs < 1:
+        raise UsageError(f"--jobs {args.jobs} is not allowed: --jobs must be >= 1")
+    if args.out is not None and not args.out.endswith(".parquet"):
+        raise UsageError(f"--out {args.out!r} must end with .parquet")
+    spec = S.load(args.spec)
+    if spec.sensitivity is None:
+        raise UsageError(f"{args.spec} has no sensitivity: section; see sweeps/sensitivity.yaml")
+    say = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
+    df = SA.run(spec, jobs=args.jobs, progress=not args.quiet, out=args.out, log=say)
+    if not args.quiet:
+        print("\n".join(SA.summary_lines(df)))
+    return 0
+
+
+def add_plot_design_parser(sub) -> argparse.ArgumentParser:
+    from .plots_design import FIGURES
+
+    what = list(FIGURES) + ["all"]
+    g = sub.add_parser("plot-design", help="draw the design figures (envelope map, loads, window, sensitivity)",
+                       description="Draw the figures of the design for every package into RESULTS/figures/ from "
+                                   "the tables of fencesweep grid sweeps/envelope.yaml and fencesweep design "
+                                   "(needs matplotlib). Figures: " + ", ".join(FIGURES))
+    g.add_argument("what", nargs="*", default=["all"], choices=what, metavar="NAME",
+                   help=f"one or more of: {', '.join(what)} (default: all)")
+    g.add_argument("--results", default="results", metavar="DIR", help="directory of the tables (default: results)")
+    g.add_argument("--out", default=None, metavar="DIR", help="where the PNGs go (default: RESULTS/figures)")
+    g.set_defaults(func=cmd_plot_design)
+    return g
+
+
+def cmd_plot_design(args: argparse.Namespace) -> int:
+    from .plots_design import MissingTable, plot
+
+    try:
+        for p in plot(args.what, Path(args.results), args.out):
+            print(p)
+    except MissingTable as exc:
+        raise UsageError(str(exc)) from None
+    return 0
+
+
 def _dry_run(spec: S.Spec, out: Path, args: argparse.Namespace) -> int:
     import joblib
 
@@ -320,6 +377,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_grid_parser(sub)
     add_design_parser(sub)
+    add_sensitivity_parser(sub)
+    add_plot_design_parser(sub)
     add_plot_parser(sub)
     return ap
 

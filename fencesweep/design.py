@@ -32,7 +32,8 @@ from . import envelope as E
 from . import params as P
 
 OBJECTIVES = ("max_min_margin", "min_worst_overload")
-SECTION_KEYS = ("variables", "constraints", "objective", "optimizer", "verify", "compare", "output", "digits")
+SECTION_KEYS = ("variables", "constraints", "objective", "optimizer", "verify", "compare", "output", "digits",
+                "prefer", "within")
 OPTIMIZER_KEYS = ("seed", "maxiter", "popsize", "tol", "refine")
 VERIFY_KEYS = ("sobol", "lhs", "seed")
 DEFAULT_COMPARE = {"paper 72/570": {"B2": 72.0, "K2": 570.0}, "two-case 15/2075": {"B2": 15.0, "K2": 2075.0},
@@ -60,6 +61,8 @@ class DesignConfig:
     compare: dict = field(default_factory=lambda: dict(DEFAULT_COMPARE))
     output: str = "results/design"
     digits: int = 3
+    prefer: tuple | None = None  # (variable, "min" | "max"): the second stage of max_min_margin
+    within: float = 0.01  # ... among points whose smallest margin is within this of the best
 
     def as_dict(self) -> dict:
         return {"variables": {k: {"min": lo, "max": hi} for k, (lo, hi) in self.variables.items()},
@@ -67,7 +70,8 @@ class DesignConfig:
                 "optimizer": {"method": "scipy.optimize.differential_evolution", "seed": self.seed,
                               "maxiter": self.maxiter, "popsize": self.popsize, "tol": self.tol,
                               "refine": self.refine},
-                "verify": {self.verify_method: self.verify_n, "seed": self.verify_seed}, "digits": self.digits}
+                "verify": {self.verify_method: self.verify_n, "seed": self.verify_seed}, "digits": self.digits,
+                "prefer": None if self.prefer is None else {self.prefer[0]: self.prefer[1]}, "within": self.within}
 
 
 # ------------------------------------------------------------------------------ parsing
@@ -207,7 +211,24 @@ def parse_section(raw: Any, spec) -> DesignConfig:
     if not isinstance(cfg.output, str) or not cfg.output:
         raise DesignError(f"design.output = {cfg.output!r}: expected a directory")
     cfg.digits = _int(raw.get("digits", cfg.digits), "design.digits", 1)
+    _prefer(raw, cfg)
     return cfg
+
+
+def _prefer(raw: dict, cfg: DesignConfig) -> None:
+    pref = raw.get("prefer")
+    if pref is None:
+        return
+    shape = "{VARIABLE: min} or {VARIABLE: max}, a design variable"
+    if not isinstance(pref, dict) or len(pref) != 1:
+        raise DesignError(f"design.prefer = {pref!r}: expected {shape}")
+    (name, way), = pref.items()
+    if name not in cfg.variables or way not in ("min", "max"):
+        raise DesignError(f"design.prefer = {pref!r}: expected {shape} (variables: {', '.join(cfg.variables)})")
+    if cfg.objective != "max_min_margin":
+        raise DesignError(f"design.prefer needs objective: max_min_margin (got {cfg.objective!r})")
+    cfg.prefer = (name, way)
+    cfg.within = _num(raw.get("within", cfg.within), "design.within", 0.0)
 
 
 # ------------------------------------------------------------------------------ judging
@@ -258,7 +279,23 @@ _CTX: dict = {}
 def _objective(x: np.ndarray) -> float:
     spec, cfg, loads = _CTX["spec"], _CTX["cfg"], _CTX["loads"]
     point = dict(zip(cfg.variables, (float(v) for v in x)))
-    return score(judge(evaluate(spec, point, loads, _CTX.get("simulate")), cfg.limits), cfg.objective)
+    summary = judge(evaluate(spec, point, loads, _CTX.get("simulate")), cfg.limits)
+    floor = _CTX.get("floor")
+    if floor is None:
+        return score(summary, cfg.objective)
+    return prefer_score(point, summary, cfg, floor)
+
+
+def prefer_score(point: dict, summary: dict, cfg: DesignConfig, floor: float) -> float:
+    """The second stage of max_min_margin with `prefer`: among points whose smallest margin is at
+    least `floor`, the smallest (or largest) preferred variable, as a fraction of its range in
+    [0, 1]; a point below the floor scores 1 + 10 x its shortfall."""
+    if summary["min_margin"] < floor:
+        return 1.0 + 10.0 * (floor - float(summary["min_margin"]))
+    name, way = cfg.prefer
+    lo, hi = cfg.variables[name]
+    frac = (point[name] - lo) / (hi - lo)
+    return frac if way == "min" else 1.0 - frac
 
 
 def round_sig(x: float, digits: int) -> float:
@@ -282,13 +319,14 @@ class Found:
 
 
 def search(spec, cfg: DesignConfig, jobs: int = 1, progress: bool = False, simulate: Callable | None = None,
-           log: Callable[[str], None] = lambda m: None) -> Found:
-    """differential_evolution over cfg.variables, each point judged over the spec's envelope."""
+           log: Callable[[str], None] = lambda m: None, floor: float | None = None) -> Found:
+    """differential_evolution over cfg.variables, each point judged over the spec's envelope; with
+    `floor`, the second stage (prefer_score)."""
     from scipy.optimize import differential_evolution
 
-    _CTX.update(spec=spec, cfg=cfg, loads=spec.envelope.loads, simulate=simulate)
+    _CTX.update(spec=spec, cfg=cfg, loads=spec.envelope.loads, simulate=simulate, floor=floor)
     bounds = list(cfg.variables.values())
-    bar = _bar(cfg.maxiter, "design", progress)
+    bar = _bar(cfg.maxiter, "design" if floor is None else f"prefer {cfg.prefer[1]} {cfg.prefer[0]}", progress)
     t0 = time.perf_counter()
 
     def callback(intermediate_result):
@@ -325,12 +363,13 @@ def _bar(total: int, desc: str, enabled: bool):
     return tqdm(total=total, desc=desc, unit="gen", disable=not enabled, leave=False)
 
 
-def refine(spec, cfg: DesignConfig, start: dict, loads: list, simulate: Callable | None = None) -> dict:
+def refine(spec, cfg: DesignConfig, start: dict, loads: list, simulate: Callable | None = None,
+           floor: float | None = None) -> dict:
     """A bounded Nelder-Mead from `start` on the dense sample `loads`: where the optimum moves
     when judged on more loads. Returns the refined point (rounded) and its score."""
     from scipy.optimize import minimize
 
-    _CTX.update(spec=spec, cfg=cfg, loads=loads, simulate=simulate)
+    _CTX.update(spec=spec, cfg=cfg, loads=loads, simulate=simulate, floor=floor)
     names = list(cfg.variables)
     x0 = np.array([start[n] for n in names])
     lo = np.array([cfg.variables[n][0] for n in names])
@@ -345,7 +384,8 @@ def refine(spec, cfg: DesignConfig, start: dict, loads: list, simulate: Callable
     res = minimize(_objective, x0, method="Nelder-Mead", bounds=list(zip(lo, hi)),
                    options={"maxfev": cfg.refine, "initial_simplex": simplex, "xatol": 1e-3, "fatol": 1e-4})
     point = {n: round_sig(float(v), cfg.digits) for n, v in zip(names, res.x)}
-    return {"point": point, "score": float(res.fun), "nfev": int(res.nfev)}
+    margin = judge(evaluate(spec, point, loads, simulate), cfg.limits)["min_margin"]
+    return {"point": point, "score": float(res.fun), "nfev": int(res.nfev), "min_margin": float(margin)}
 
 
 # ------------------------------------------------------------------------------ the study
@@ -380,6 +420,10 @@ def run_design(spec, jobs: int = 1, progress: bool = False, out_dir: str | Path 
     t0 = time.perf_counter()
     env = spec.envelope
     found = search(spec, cfg, jobs, progress, simulate, log)
+    best = None
+    if cfg.prefer is not None:  # among the points within `within` of the best smallest margin
+        best = found
+        found = search(spec, cfg, jobs, progress, simulate, log, floor=-best.score - cfg.within)
     on_sample = judge(evaluate(spec, found.point, env.loads, simulate), cfg.limits)
     loads, skipped = dense_loads(spec, cfg)
     if skipped:
@@ -393,11 +437,18 @@ def run_design(spec, jobs: int = 1, progress: bool = False, out_dir: str | Path 
         per_load.append(pl)
         rows.append(_row(label, point, judge(pl, cfg.limits), dense_of))
     verified = rows[0]
-    moved = refine(spec, cfg, found.point, loads, simulate) if cfg.refine else None
+    floor = None
+    if best is not None:  # the same second stage on the fresh loads: the floor from their best margin
+        floor = judge(evaluate(spec, best.point, loads, simulate), cfg.limits)["min_margin"] - cfg.within
+    moved = refine(spec, cfg, found.point, loads, simulate, floor) if cfg.refine else None
     table = pd.DataFrame(rows)
     store.write_table_atomic(_arrow(table), out / "comparison.parquet")
     store.write_table_atomic(_arrow(pd.concat(per_load, ignore_index=True)), out / "verify_loads.parquet")
     rec = _recommendation(spec, cfg, found, on_sample, verified, moved, loads, skipped, time.perf_counter() - t0)
+    if best is not None:
+        rec["largest_margin"] = {"design_variables": best.point, "min_margin": -best.score,
+                                 "generations": best.nit, "evaluations": best.nfev, "converged": best.converged,
+                                 "cycles": best.nfev * len(env.loads)}
     rec["comparison"] = [{k: _plain(v) for k, v in r.items()} for r in rows]
     out.mkdir(parents=True, exist_ok=True)
     with store.atomic_path(out / "recommended.json") as tmp:
@@ -420,10 +471,10 @@ def _plain(v):
 
 
 def at_bounds(point: dict, cfg: DesignConfig) -> dict:
-    """The design variables that lie on a bound of their range: name -> 'lower' / 'upper'."""
+    """The design variables within 1 % of their range from a bound: name -> 'lower' / 'upper'."""
     out = {}
     for k, (lo, hi) in cfg.variables.items():
-        tol = 10.0 ** -cfg.digits * (hi - lo)
+        tol = 0.01 * (hi - lo)
         if point[k] <= lo + tol:
             out[k] = "lower"
         elif point[k] >= hi - tol:
@@ -509,7 +560,14 @@ def summary_lines(rec: dict) -> list:
     if ref:
         lines.append("refined on the fresh loads: " + ", ".join(f"{k} = {v:g}" for k, v in ref["point"].items())
                      + " (moved " + ", ".join(f"{k} {v:+g}" for k, v in ref["moved"].items())
-                     + f"; smallest margin {-ref['score']:.3f})" if rec["objective"] == "max_min_margin" else ")")
+                     + f"; smallest margin {ref['min_margin']:.3f})")
+    big = rec.get("largest_margin")
+    if big:
+        pv = next(iter(rec["design"]["prefer"].items()))
+        lines.append(f"largest smallest margin: {big['min_margin']:.3f} at "
+                     + ", ".join(f"{k} = {v:g}" for k, v in big["design_variables"].items())
+                     + f"; recommended: the {'least' if pv[1] == 'min' else 'largest'} {pv[0]} within "
+                     f"{rec['design']['within']:g} of it")
     lines.append("")
     lines += comparison_lines(rec["comparison"])
     return lines

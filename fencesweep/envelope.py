@@ -277,36 +277,72 @@ def _norm(x):
     return x if isinstance(x, str) else float(x)
 
 
-def summarize(df, by: list, limits: Limits):
-    """Per design point (the columns `by`) over its loads (rows of `df` with a `load` column):
-    n_loads, share_scraped, worst_* and worst_*_load, margin_* (1 - worst / limit; for scraped,
-    share_scraped - 1 when a load escapes, inf when none does), min_margin, binding (the constraint with the smallest margin) and feasible."""
+WORST = ("overload", "deflection_max", "residual_amplitude")
+
+
+def partial(df, by: list, limits: Limits):
+    """Per design point (the columns `by`) of some of its loads (rows of `df` with a `load` column):
+    n_loads, n_scraped, worst_* and worst_*_load, dlim (the deflection limit). Partials of
+    disjoint rows combine with `combine`: a table is judged batch by batch in flat memory."""
     import pandas as pd
 
-    d = df.assign(_scraped=(df["outcome"] == "scraped").astype(float),
-                  _dlim=df["dalpha_perm"] if limits.deflection_max is None else limits.deflection_max)
-    d["overload"] = d["overload"].fillna(0.0)
-    keys = by or (lambda _: 0)
-    g = d.groupby(keys, sort=False)
-    out = pd.DataFrame({"n_loads": g.size(), "share_scraped": g["_scraped"].mean()})
-    out["n_escaped"] = g["outcome"].agg(lambda s: int((s != "scraped").sum()))
-    for col in ("overload", "deflection_max", "residual_amplitude"):
-        idx = g[col].idxmax()
-        out[f"worst_{col}"] = d.loc[idx.to_numpy(), col].to_numpy()
-        out[f"worst_{col}_load"] = d.loc[idx.to_numpy(), "load"].to_numpy()
-    dlim = g["_dlim"].min()
+    d = df.assign(_scraped=(df["outcome"] == "scraped").astype(np.int64),
+                  _dlim=df["dalpha_perm"] if limits.deflection_max is None else limits.deflection_max,
+                  _one=1)
+    d["overload"] = d["overload"].fillna(0.0)  # no contact: no force
+    g = d.groupby(by or (lambda _: 0), sort=False)
+    out = pd.DataFrame({"n_loads": g["_one"].sum(), "n_scraped": g["_scraped"].sum(), "dlim": g["_dlim"].min()})
+    for col in WORST:
+        idx = g[col].idxmax().to_numpy()
+        out[f"worst_{col}"] = d.loc[idx, col].to_numpy()
+        out[f"worst_{col}_load"] = d.loc[idx, "load"].to_numpy()
+    return out
+
+
+def combine(parts: list):
+    """Partials of disjoint rows of the same design points -> one partial."""
+    import pandas as pd
+
+    if len(parts) == 1:
+        return parts[0]
+    allp = pd.concat(parts)
+    g = allp.groupby(level=list(range(allp.index.nlevels)), sort=False)
+    out = pd.DataFrame({"n_loads": g["n_loads"].sum(), "n_scraped": g["n_scraped"].sum(), "dlim": g["dlim"].min()})
+    flat = allp.reset_index(drop=True)
+    keys = allp.index
+    for col in WORST:
+        idx = flat.groupby(np.asarray(pd.factorize(keys)[0]), sort=False)[f"worst_{col}"].idxmax().to_numpy()
+        out[f"worst_{col}"] = flat.loc[idx, f"worst_{col}"].to_numpy()
+        out[f"worst_{col}_load"] = flat.loc[idx, f"worst_{col}_load"].to_numpy()
+    return out
+
+
+def finish(part, by: list, limits: Limits):
+    """A partial over all the loads -> the per-design-point table (see summarize)."""
+    out = part.copy()
+    out.insert(1, "share_scraped", out["n_scraped"] / out["n_loads"])
+    out.insert(2, "n_escaped", out["n_loads"] - out["n_scraped"])
     # an escape is a broken constraint (share - 1 < 0); every load scraped leaves no finite margin
-    out["margin_scraped"] = np.where(out["share_scraped"] < 1.0, out["share_scraped"] - 1.0, np.inf) \
-        if limits.scraped else np.inf
+    out["margin_scraped"] = (np.where(out["share_scraped"] < 1.0, out["share_scraped"] - 1.0, np.inf)
+                             if limits.scraped else np.inf)
     out["margin_overload"] = 1.0 - out["worst_overload"] / limits.overload
-    out["margin_deflection_max"] = 1.0 - out["worst_deflection_max"] / dlim
+    out["margin_deflection_max"] = 1.0 - out["worst_deflection_max"] / out["dlim"]
     out["margin_residual_amplitude"] = (1.0 - out["worst_residual_amplitude"] / limits.residual_amplitude
                                         if limits.residual_amplitude is not None else np.inf)
     m = out[MARGINS]
     out["min_margin"] = m.min(axis=1)
     out["binding"] = m.idxmin(axis=1).str.removeprefix("margin_")
     out["feasible"] = out["min_margin"] >= 0.0
+    out = out.drop(columns=["n_scraped", "dlim"])
     return out.reset_index(drop=not by)
+
+
+def summarize(df, by: list, limits: Limits):
+    """Per design point (the columns `by`) over its loads (rows of `df` with a `load` column):
+    n_loads, share_scraped, n_escaped, worst_* and worst_*_load (the load index), margin_*
+    (1 - worst / limit; for scraped, share_scraped - 1 when a load escapes, inf when none does),
+    min_margin, binding (the constraint with the smallest margin) and feasible."""
+    return finish(partial(df, by, limits), by, limits)
 
 
 MARGINS = ["margin_scraped", "margin_overload", "margin_deflection_max", "margin_residual_amplitude"]
@@ -317,7 +353,10 @@ def design_columns(spec) -> list:
     names = [n_ for a in spec.axes if a.where != "envelope" for n_ in a.names]
     if "Psi" in names:  # the table holds K2 too; Psi is derived
         names = [n_ for n_ in names if n_ != "Psi"] + ["K2"]
-    return (["case"] if len(spec.cases) > 1 else []) + names
+    if len(spec.cases) > 1:  # the cases' own parameters tell them apart (and their names, if named)
+        named = ["case"] if any(c["case"] for c in spec.cases) else []
+        names = named + list(dict.fromkeys(n_ for c in spec.cases for n_ in c["params"])) + names
+    return names
 
 
 def points_path(out) -> Any:
@@ -328,25 +367,33 @@ def points_path(out) -> Any:
     return out.with_name(out.stem + "_points.parquet")
 
 
-def write_points(spec, table_path, limits: Limits | None = None):
-    """Read an envelope sweep's per-load table and write its per-design-point table (points_path);
-    returns (path, DataFrame)."""
-    import pandas as pd
-    import pyarrow as pa
+#: rows of the per-load table read at once when it is judged (the memory stays flat in its size)
+POINTS_BATCH = 65_536
 
-    env = spec.envelope
-    by = design_columns(spec)
-    cols = list(dict.fromkeys(by + list(env.names) + ["outcome", "overload", "deflection_max",
-                                                      "residual_amplitude", "dalpha_perm"]))
-    df = pd.read_parquet(table_path, columns=cols)
-    df["load"] = load_index(df, env)
-    pts = summarize(df, by, limits or spec_limits(spec))
-    path = points_path(table_path)
+
+def write_points(spec, table_path, limits: Limits | None = None):
+    """Judge an envelope sweep's per-load table, batch by batch, and write its per-design-point
+    table (points_path); returns (path, DataFrame)."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
     from . import store
 
+    env = spec.envelope
+    limits = limits or spec_limits(spec)
+    by = design_columns(spec)
+    cols = list(dict.fromkeys(by + list(env.names) + ["outcome", *WORST, "dalpha_perm"]))
+    parts = []
+    for batch in pq.ParquetFile(table_path).iter_batches(batch_size=POINTS_BATCH, columns=cols):
+        df = batch.to_pandas()
+        df["load"] = load_index(df, env)
+        parts.append(partial(df, by, limits))
+        if len(parts) > 8:
+            parts = [combine(parts)]
+    pts = finish(combine(parts), by, limits)
+    path = points_path(table_path)
     meta = {"spec_hash": spec.hash, "spec_path": spec.path, "envelope": env.definition(),
-            "limits": (limits or spec_limits(spec)).as_dict(), "per_load_table": str(table_path),
-            "versions": store.versions()}
+            "limits": limits.as_dict(), "per_load_table": str(table_path), "versions": store.versions()}
     table = pa.Table.from_pandas(pts, preserve_index=False)
     table = table.replace_schema_metadata({**(table.schema.metadata or {}), **store._meta_bytes(meta)})
     store.write_table_atomic(table, path)

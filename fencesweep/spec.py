@@ -31,7 +31,7 @@ DERIVED_INPUTS = {"Psi": ("-", "relative damping B2 / (2 sqrt(K2 I2)); fixes K2 
 INPUT_NAMES = P.NAMES + tuple(DERIVED_INPUTS)
 
 TOP_KEYS = ("scene", "case", "params", "grid", "zip", "cases", "output", "invalid", "chunk_size",
-            "description", "loads", "envelope", "design")
+            "description", "loads", "envelope", "design", "sensitivity")
 AXIS_FORMS = ("linspace", "logspace", "range")
 INVALID_POLICIES = ("error", "skip")
 MAX_AXIS = 10_000_000
@@ -216,6 +216,7 @@ class Spec:
     loads: list | None = None  # scene stream: one load per cycle (params.resolve_loads), for every scene
     envelope: Any = None  # envelope.Envelope: its loads are the innermost axis (issue 10)
     design: Any = None  # design.DesignConfig: constraints, objective, variables (fencesweep design)
+    sensitivity: Any = None  # sensitivity.parse_section: assumed inputs' ranges (fencesweep sensitivity)
     _shape: tuple = field(default=(), repr=False)
 
     def __post_init__(self):
@@ -465,13 +466,17 @@ def parse(data: Any, source: str = "", path: str | None = None) -> Spec:  # noqa
     sp = Spec(scene=scene, case=case, params=base, axes=axes, cases=cases, output=output,
               invalid=invalid, chunk_size=chunk, description=desc, source=source, path=path,
               loads=_loads(data.get("loads"), scene), envelope=env)
-    if data.get("design") is not None:
-        from . import design as D
+    try:
+        if data.get("design") is not None:
+            from . import design as D
 
-        try:
             sp.design = D.parse_section(data["design"], sp)
-        except P.ParameterError as exc:
-            raise SpecError(str(exc)) from None
+        if data.get("sensitivity") is not None:
+            from . import sensitivity as SA
+
+            sp.sensitivity = SA.parse_section(data["sensitivity"], sp)
+    except P.ParameterError as exc:
+        raise SpecError(str(exc)) from None
     return sp
 
 

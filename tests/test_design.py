@@ -109,3 +109,16 @@ def test_scores_rank_feasible_points_before_infeasible_ones():
     assert D.score(ok, "max_min_margin") == -0.1
     assert D.score(ok, "min_worst_overload") == 0.9
     assert math.isclose(D.round_sig(1234.5678, 3), 1230.0)
+
+
+def test_prefer_the_least_damping_within_the_best_margin(tmp_path):
+    sp = load(TINY.replace("optimizer:", "prefer: {B2: min}\n      within: 0.05\n      optimizer:")
+              .replace("maxiter: 2, popsize: 2", "maxiter: 4, popsize: 4"))
+    assert sp.design.prefer == ("B2", "min") and sp.design.within == 0.05
+    rec = D.run_design(sp, out_dir=tmp_path)
+    big = rec["largest_margin"]
+    assert rec["design_variables"]["B2"] <= big["design_variables"]["B2"]
+    assert rec["optimisation_sample"]["min_margin"] >= big["min_margin"] - 0.05 - 0.01  # rounding to 3 digits
+    assert any("least B2 within 0.05" in x for x in D.summary_lines(rec))
+    with pytest.raises(S.SpecError, match="design.prefer"):
+        load(TINY.replace("optimizer:", "prefer: {L: min}\n      optimizer:"))

@@ -130,3 +130,17 @@ def test_envelope_sweep_plan_counts_every_load(tmp_path):
     sp = load(BOX)
     plan = sweep.make_plan(sp)
     assert plan.n_scenes == 2 * len(sp.envelope.loads) == plan.n_models
+
+
+def test_batches_combine_to_the_one_pass_judgement():
+    rng = np.random.default_rng(0)
+    n = 40
+    df = pd.DataFrame({"B2": np.repeat([1.0, 2.0, 3.0, 4.0], n // 4), "load": np.tile(np.arange(n // 4), 4),
+                       "outcome": rng.choice(["scraped", "scraped", "escaped"], n),
+                       "overload": rng.random(n) * 1.2, "deflection_max": rng.random(n) * 0.3,
+                       "residual_amplitude": rng.random(n) * 0.02, "dalpha_perm": 0.2618})
+    whole = E.summarize(df, ["B2"], E.Limits())
+    for cuts in ([5, 23], [1, 2, 3, 39], [17]):  # batches that split design points
+        edges = [0, *cuts, n]
+        parts = [E.partial(df.iloc[a:b], ["B2"], E.Limits()) for a, b in zip(edges, edges[1:])]
+        pd.testing.assert_frame_equal(E.finish(E.combine(parts), ["B2"], E.Limits()), whole)
