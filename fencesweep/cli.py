@@ -282,7 +282,7 @@ def add_plot_design_parser(sub) -> argparse.ArgumentParser:
                        description="Draw the figures of the design for every package into RESULTS/figures/ from "
                                    "the tables of fencesweep grid sweeps/envelope.yaml and fencesweep design "
                                    "(needs matplotlib). Figures: " + ", ".join(FIGURES))
-    g.add_argument("what", nargs="*", default=["all"], choices=what, metavar="NAME",
+    g.add_argument("what", nargs="*", default=[], metavar="NAME",
                    help=f"one or more of: {', '.join(what)} (default: all)")
     g.add_argument("--results", default="results", metavar="DIR", help="directory of the tables (default: results)")
     g.add_argument("--out", default=None, metavar="DIR", help="where the PNGs go (default: RESULTS/figures)")
@@ -291,8 +291,11 @@ def add_plot_design_parser(sub) -> argparse.ArgumentParser:
 
 
 def cmd_plot_design(args: argparse.Namespace) -> int:
-    from .plots_design import MissingTable, plot
+    from .plots_design import FIGURES, MissingTable, plot
 
+    bad = [w for w in args.what if w not in FIGURES and w != "all"]
+    if bad:
+        raise UsageError(f"plot-design {bad[0]!r}: no such figure (one of {', '.join(FIGURES)}, all)")
     try:
         for p in plot(args.what, Path(args.results), args.out):
             print(p)

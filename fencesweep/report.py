@@ -781,6 +781,9 @@ def write_report(res: Path = Path("results"), residual_max_deg: float = RESIDUAL
     w("")
     if table_path(res, "period").exists():
         L += stream_section(read_table(res, "period"))
+    from .report_design import design_section  # issue 10: empty until `fencesweep design` has run
+
+    L += design_section(res)
     out.write_text("\n".join(L) + "\n")
     return out
 

@@ -505,11 +505,11 @@ def load_base(scene: str, case: str | None, base: dict, cases: list) -> dict:
     the first entry of cases on the §12 defaults (P_max, L, A, phi0 for dP: across), and "check",
     a function of a load that raises ParameterError when it cannot start in some entry of cases."""
     first = cases[0]
-    defaults = dict(P.defaults(), **P.CASES.get(first["case"] or case or "", {}), **base, **first["params"])
+    defaults = {**P.defaults(), **P.CASES.get(first["case"] or case or "", {}), **base, **first["params"]}
 
     def check(load: dict) -> None:
         for c in cases:
-            resolve_inputs(scene, c["case"] or case, dict(base, **c["params"], **load))
+            resolve_inputs(scene, c["case"] or case, {**base, **c["params"], **load})
 
     return {"defaults": defaults, "check": check}
 

@@ -144,3 +144,16 @@ def test_batches_combine_to_the_one_pass_judgement():
         edges = [0, *cuts, n]
         parts = [E.partial(df.iloc[a:b], ["B2"], E.Limits()) for a, b in zip(edges, edges[1:])]
         pd.testing.assert_frame_equal(E.finish(E.combine(parts), ["B2"], E.Limits()), whole)
+
+
+def test_cases_that_override_params_tell_the_design_points_apart():
+    sp = load("""
+        params: {drive: flexible}
+        cases:
+          - {drive: rigid}
+          - {B2: 72, K2: 570}
+        envelope: {L: [0.2, 0.7], dP: across}
+        """)
+    assert E.design_columns(sp) == ["drive", "B2", "K2"]
+    assert len(sp.envelope.loads) == 4 and sp.n_scenes == 2 * 4  # two lengths x the rail and the far edge
+    assert sp.resolve(0)["drive"] == "rigid" and sp.resolve(4)["B2"] == 72
