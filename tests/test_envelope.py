@@ -157,3 +157,32 @@ def test_cases_that_override_params_tell_the_design_points_apart():
     assert E.design_columns(sp) == ["drive", "B2", "K2"]
     assert len(sp.envelope.loads) == 4 and sp.n_scenes == 2 * 4  # two lengths x the rail and the far edge
     assert sp.resolve(0)["drive"] == "rigid" and sp.resolve(4)["B2"] == 72
+
+
+def test_an_interrupted_envelope_sweep_resumes_and_dask_gives_the_same_table(tmp_path, monkeypatch):
+    from pathlib import Path
+
+    from fencesweep import store
+
+    sp = S.loads(textwrap.dedent(BOX).replace("sobol: 8", "sobol: 2") + "chunk_size: 5\n")
+    ref = sweep.run_sweep(sp, tmp_path / "ref.parquet", jobs=1)
+    real_write, written = store.write_chunk, []
+
+    def dying_write(path, *a, **k):
+        if len(written) == 3:
+            raise KeyboardInterrupt
+        real_write(path, *a, **k)
+        written.append(Path(path))
+
+    monkeypatch.setattr(store, "write_chunk", dying_write)
+    with pytest.raises(KeyboardInterrupt):
+        sweep.run_sweep(sp, tmp_path / "cut.parquet", jobs=1)
+    monkeypatch.setattr(store, "write_chunk", real_write)
+    again = sweep.run_sweep(sp, tmp_path / "cut.parquet", jobs=1)
+    assert again.reused == 3 and again.computed == again.n_chunks - 3
+    assert again.out.read_bytes() == ref.out.read_bytes()
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=False,
+                                  dashboard_address=None) as cluster:
+        res = sweep.run_sweep(sp, tmp_path / "dask.parquet", backend="dask", scheduler=cluster.scheduler_address)
+    assert res.out.read_bytes() == ref.out.read_bytes()
