@@ -297,7 +297,7 @@ def cmd_plot_design(args: argparse.Namespace) -> int:
     if bad:
         raise UsageError(f"plot-design {bad[0]!r}: no such figure (one of {', '.join(FIGURES)}, all)")
     try:
-        for p in plot(args.what, Path(args.results), args.out):
+        for p in plot(args.what, Path(args.results), args.out, log=lambda m: print(m, file=sys.stderr)):
             print(p)
     except MissingTable as exc:
         raise UsageError(str(exc)) from None

@@ -199,8 +199,19 @@ def sensitivity(res: Path, out: Path) -> Path:
 FIGURES = {"envelope_map": envelope_map, "envelope_loads": worst_loads, "window": window, "sensitivity": sensitivity}
 
 
-def plot(names, res: Path, out: Path | None = None) -> list:
+def plot(names, res: Path, out: Path | None = None, log=None) -> list:
+    """Draw the named figures ('all' or none: every one whose tables exist, `log` told of the
+    others); return the PNG paths written. A named figure whose table is missing raises MissingTable."""
     out = Path(out) if out else Path(res) / "figures"
-    names = list(FIGURES) if (not names or "all" in names) else names
-    return [FIGURES[n](Path(res), out) for n in names]
+    every = not names or "all" in names
+    paths = []
+    for n in (list(FIGURES) if every else names):
+        try:
+            paths.append(FIGURES[n](Path(res), out))
+        except MissingTable as exc:
+            if not every:
+                raise
+            if log:
+                log(f"skipping {n}: {exc}")
+    return paths
 

@@ -85,3 +85,6 @@ def test_design_figures_are_drawn(res, tmp_path):
     assert all(p.stat().st_size > 10_000 for p in paths)
     with pytest.raises(PD.MissingTable, match="fencesweep grid sweeps/window.yaml"):
         PD.plot(["window"], res, tmp_path)
+    notes = []
+    assert len(PD.plot(["all"], res, tmp_path, log=notes.append)) == 2  # window, sensitivity: no tables
+    assert len(notes) == 2 and "sensitivity" in notes[1]
