@@ -188,6 +188,15 @@ def _unit_points(env: Envelope, n: int, seed: int, corners: bool) -> np.ndarray:
     return np.asarray(pts, dtype=float).reshape(len(pts), d)
 
 
+def _round_within(x: float, most: float) -> float:
+    """x to _SIG significant digits, but never above `most` (a load at the far edge stays on the
+    belt; params checks the start with a relative tolerance of 1e-12, taken here as 1e-13)."""
+    r = _round(x)
+    while r > most + 1e-13 and r > 0:
+        r = _round(r - 10.0 ** (math.floor(math.log10(r)) - _SIG + 1))
+    return r
+
+
 def _load_of(env: Envelope, u: np.ndarray, base: dict) -> dict:
     free = [n_ for n_, d in env.dims.items() if d[0] != "fixed"]
     load = {n_: d[1] for n_, d in env.dims.items() if d[0] == "fixed"}
@@ -201,8 +210,8 @@ def _load_of(env: Envelope, u: np.ndarray, base: dict) -> dict:
             load[n_] = x  # across: a fraction of the accessible width, made a dP below
     if "dP" in free and env.dims["dP"][0] == "across":
         v = dict(base, **load)
-        room = v["P_max"] - _extent(v["L"], v["A"], v["phi0"])
-        load["dP"] = _round(max(room, 0.0) * load["dP"])
+        room = max(v["P_max"] - _extent(v["L"], v["A"], v["phi0"]), 0.0)
+        load["dP"] = _round_within(room * load["dP"], room)
     return load
 
 

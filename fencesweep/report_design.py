@@ -242,6 +242,41 @@ def _sensitivity(res: Path) -> list:
     return out + ["", "![sensitivity](figures/sensitivity.png)"]
 
 
+def _tolerance(res: Path) -> list:
+    """The five elements over the envelope widened by trigger-timing and orientation tolerances."""
+    import pandas as pd
+
+    from .plots_design import element_label
+
+    pts = pd.read_parquet(res / "tolerance_points.parquet")
+    per = pd.read_parquet(res / "tolerance.parquet", columns=["R_s", "phi0", "outcome"])
+    from .store import read_metadata
+
+    meta_env = read_metadata(res / "tolerance_points.parquet")["envelope"]["dims"]
+    rs, ph = meta_env["R_s"], meta_env["phi0"]
+    out = [f"`sweeps/tolerance.yaml` widens the envelope by a trigger-timing tolerance (R_s {rs['min']:g} to "
+           f"{rs['max']:g} m) and an orientation tolerance (phi0 {ph['min']:g} to {ph['max']:g} rad): "
+           f"{int(pts['n_loads'].iloc[0])} loads at t_c = 1.36 s, v = 2 m/s.", "",
+           "| element | loads not scraped | worst overload | worst deflection_max | worst residual_amplitude | "
+           "smallest margin | binding |", "|---|---|---|---|---|---|---|"]
+    for _, r in pts.iterrows():
+        out.append(f"| {element_label(r['drive'], r['B2'], r['K2'])} | {int(r['n_escaped'])} of {int(r['n_loads'])} | "
+                   f"{r['worst_overload']:.3f} | {_deg(r['worst_deflection_max'])} | "
+                   f"{_deg(r['worst_residual_amplitude'])} | {r['min_margin']:+.3f} | {r['binding']} |")
+    lost = per[per["outcome"] != "scraped"]
+    feas = int(pts["feasible"].sum())
+    text = (f"{feas} of {len(pts)} elements keep every constraint for every load with these tolerances. ")
+    if len(lost):
+        below = lost.loc[lost["R_s"] <= 0, "R_s"]
+        above = lost.loc[lost["R_s"] > 0, "R_s"]
+        text += (f"The {len(lost)} loads not scraped (over all elements) start with R_s "
+                 + " or ".join(x for x in ((f"<= {below.max():.3g} m" if len(below) else ""),
+                                             (f">= {above.min():.3g} m" if len(above) else "")) if x)
+                 + f" (the ends of the timing tolerance; between them no load is lost): every element loses "
+                 f"{int(pts['n_escaped'].min())} to {int(pts['n_escaped'].max())} of them.")
+    return out + ["", text]
+
+
 def design_section(res: Path) -> list:
     """The lines of REPORT.md's design section (empty when `fencesweep design` has not run)."""
     res = Path(res)
@@ -261,6 +296,8 @@ def design_section(res: Path) -> list:
     L += ["### The recommended element", ""] + _recommendation(rec) + ["", "### Comparison on the fresh loads", ""]
     L += _comparison(res, rec) + [""]
     L += _whole_width(res, rec) + [""]
+    if (res / "tolerance_points.parquet").exists() and (res / "tolerance.parquet").exists():
+        L += ["### With trigger-timing and orientation tolerances", ""] + _tolerance(res) + [""]
     if (res / "window_points.parquet").exists():
         L += ["### Operating window and throughput", ""] + _window(res) + [""]
     if (res / "swing.parquet").exists():

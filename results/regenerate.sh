@@ -35,11 +35,12 @@ done
 
 # 2b. design for every package (issue 10): the envelope map (419904 cycles, minutes), the
 #     recommendation, the operating window, the swing, and the sensitivity (needs SALib)
-rm -rf results/design results/envelope*.parquet results/window*.parquet results/swing.parquet results/sensitivity*.parquet
+rm -rf results/design results/envelope*.parquet results/window*.parquet results/swing.parquet results/tolerance.parquet results/tolerance_points.parquet results/sensitivity*.parquet
 fencesweep grid sweeps/envelope.yaml --quiet --no-resume "${JOBS[@]}"
 fencesweep design sweeps/envelope.yaml --quiet "${JOBS[@]}"
 fencesweep grid sweeps/window.yaml --quiet --no-resume "${JOBS[@]}"
 fencesweep grid sweeps/swing.yaml --quiet --no-resume "${JOBS[@]}"
+fencesweep grid sweeps/tolerance.yaml --quiet --no-resume "${JOBS[@]}"
 if python -c "import SALib" 2>/dev/null; then
   fencesweep sensitivity sweeps/sensitivity.yaml --quiet "${JOBS[@]}"
 else

@@ -186,3 +186,20 @@ def test_an_interrupted_envelope_sweep_resumes_and_dask_gives_the_same_table(tmp
                                   dashboard_address=None) as cluster:
         res = sweep.run_sweep(sp, tmp_path / "dask.parquet", backend="dask", scheduler=cluster.scheduler_address)
     assert res.out.read_bytes() == ref.out.read_bytes()
+
+
+def test_across_keeps_turned_loads_on_the_belt():
+    sp = load("""
+        envelope:
+          L: {min: 0.2, max: 0.7}
+          A: {min: 0.1, max: 0.2}
+          dP: across
+          phi0: {min: -0.3, max: 0.3}
+          R_s: {min: -0.4, max: 0.6}
+          sobol: 16
+          seed: 5
+        """)
+    env = sp.envelope
+    assert not env.skipped and len(env.loads) == 2 ** 5 + 16  # the far-edge corners included
+    far = [ld for ld in env.load_dicts() if ld["dP"] > 0.44 and ld["L"] == 0.2 and ld["A"] == 0.2]
+    assert far and all(ld["dP"] <= 0.7 - E._extent(0.2, 0.2, ld["phi0"]) for ld in far)
