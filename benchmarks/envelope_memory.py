@@ -80,10 +80,10 @@ def main() -> None:
             t = re.sub(r"B2: \{linspace: \[0, 400, 81\]\}", f"B2: {{linspace: [0, 400, {n}]}}", text)
             t = re.sub(r"K2: \{linspace: \[100, 2100, 81\]\}", f"K2: {{linspace: [100, 2100, {n}]}}", t)
             canonical = t == text
-            spec = SPEC if canonical else Path(tmp) / f"envelope_{n}.yaml"
+            spec = SPEC.relative_to(ROOT) if canonical else Path(tmp) / f"envelope_{n}.yaml"  # run in ROOT
             if not canonical:
                 spec.write_text(t)
-            out = ROOT / "results" / "envelope.parquet" if canonical else Path(tmp) / f"envelope_{n}.parquet"
+            out = Path("results", "envelope.parquet") if canonical else Path(tmp) / f"envelope_{n}.parquet"
             r = run(spec, out, args.jobs)
             r.update(n=n, cycles=n * n * n_loads)
             rows.append(r)
