@@ -97,35 +97,44 @@ def _region(res: Path, rec: dict) -> list:
     return lines
 
 
+def _searches(rec: dict) -> str:
+    """How the optimum was found: one search, or two with `prefer`."""
+    opt, seed = rec["optimizer"], rec["design"]["optimizer"]["seed"]
+    ended = (f"{'converged' if opt['converged'] else 'did NOT converge'} after {opt['generations']} generations "
+             f"({opt['evaluations']} elements, {opt['cycles']} cycles, {opt['seconds']:g} s)")
+    big = rec.get("largest_margin")
+    if not big:
+        return f"The search (scipy differential_evolution, seed {seed}) {ended}."
+    (var, way), = rec["design"]["prefer"].items()
+    at = ", ".join(f"{k} = {v:g}" for k, v in big["design_variables"].items())
+    return (f"Two searches (scipy differential_evolution, seed {seed}): the first finds the largest smallest margin, "
+            f"{big['min_margin']:.3f} at {at} ({big['evaluations']} elements, {big['cycles']} cycles, "
+            f"{'converged' if big['converged'] else 'NOT converged'}); the second, for the "
+            f"{'least' if way == 'min' else 'largest'} {var} whose smallest margin is within "
+            f"{rec['design']['within']:g} of it, {ended}.")
+
+
 def _recommendation(rec: dict) -> list:
     dv = ", ".join(f"{k} = {v:g}" for k, v in rec["design_variables"].items())
-    ver, opt, smp = rec["verification"], rec["optimizer"], rec["optimisation_sample"]
+    ver, smp = rec["verification"], rec["optimisation_sample"]
     margins = ", ".join(f"{k} {v:.3f}" for k, v in rec["margins"].items() if v is not None)
-    lines = [f"`fencesweep design sweeps/envelope.yaml` ({rec['objective']}: the element farthest inside every "
-             f"constraint) recommends **{dv}** ({rec['status']}). Margins (1 - worst / limit) over the "
-             f"{ver['n_loads']} loads of a fresh, denser sample (seed {ver['seed']}): {margins}; the binding "
-             f"constraint is {rec['worst']['binding']}. Its worst loads:"]
+    goal = {"max_min_margin": "the element farthest inside every constraint",
+            "min_worst_overload": "the least worst overload among the elements that keep every constraint"}
+    lines = [f"`fencesweep design sweeps/envelope.yaml` ({rec['objective']}: {goal[rec['objective']]}) recommends "
+             f"**{dv}** ({rec['status']}). Margins (1 - worst / limit) over the {ver['n_loads']} loads of a fresh, "
+             f"denser sample (seed {ver['seed']}): {margins}; the binding constraint is {rec['worst']['binding']}. "
+             "Its worst loads:"]
     for k, load in rec["worst_loads"].items():
         lines.append(f"* {k}: {_load_text(load)}")
-    lines += ["", f"The search (scipy differential_evolution, seed {rec['design']['optimizer']['seed']}) "
-              f"{'converged' if opt['converged'] else 'did NOT converge'} after {opt['generations']} generations "
-              f"({opt['evaluations']} elements, {opt['cycles']} cycles, {opt['seconds']:g} s). Its smallest margin is "
-              f"{smp['min_margin']:.3f} on the {smp['n_loads']} loads it searched and {ver['min_margin']:.3f} on the "
-              f"{ver['n_loads']} fresh ones ({ver['min_margin_change']:+.3f})."]
+    lines += ["", _searches(rec) + f" The recommendation's smallest margin is {smp['min_margin']:.3f} on the "
+              f"{smp['n_loads']} loads searched and {ver['min_margin']:.3f} on the {ver['n_loads']} fresh ones "
+              f"({ver['min_margin_change']:+.3f})."]
     ref = rec.get("refined_on_verification_sample")
     if ref:
-        moved = ", ".join(f"{k} {v:+g} ({rel * 100:+.0f} % of its range)"
+        moved = ", ".join(f"{k} {v:+g} ({rel * 100:+.1f} % of its range)"
                           for (k, v), rel in zip(ref["moved"].items(), ref["moved_relative_to_bounds"].values()))
-        lines[-1] += (f" Refined on the fresh loads (Nelder-Mead, {ref['nfev']} evaluations) the optimum moves by "
-                      f"{moved}, to a smallest margin of {ref['min_margin']:.3f}.")
-    big = rec.get("largest_margin")
-    if big:
-        (var, way), = rec["design"]["prefer"].items()
-        lines[-1] += (" The largest smallest margin the first search found is "
-                      f"{big['min_margin']:.3f}, at " + ", ".join(f"{k} = {v:g}" for k, v in big["design_variables"].items())
-                      + f" ({big['evaluations']} elements, {big['cycles']} cycles); the recommendation is the element with the "
-                      f"{'least' if way == 'min' else 'largest'} {var} whose smallest margin is within "
-                      f"{rec['design']['within']:g} of it (the second search above).")
+        lines[-1] += (f" Searched again on the fresh loads (Nelder-Mead from it, {ref['nfev']} evaluations), the "
+                      f"optimum moves by {moved}, to a smallest margin of {ref['min_margin']:.3f}.")
     for k, side in rec.get("at_bounds", {}).items():
         lines.append(f"Note: {k} lies at the {side} bound of its search range: the best element may lie beyond it.")
     return lines
