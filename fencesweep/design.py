@@ -258,6 +258,40 @@ def evaluate(spec, point: dict, loads: list, simulate: Callable | None = None):
     return pd.DataFrame(rows)
 
 
+def stream_check(spec, point: dict, loads: list, limits: E.Limits) -> dict | None:
+    """The loads back to back (scene stream, MODEL.md §14) at period t_c, in the order given:
+    what one cycle leaves in the element is what the next starts from. `safe`: every cycle
+    scraped, worst overload and deflection within the limits. None when the envelope
+    varies more than the load's parameters, or the element cannot run a stream (drive free)."""
+    import pandas as pd
+
+    from . import api
+    from . import spec as S
+
+    names = spec.envelope.names
+    if any(n not in P.LOAD_NAMES for n in names):
+        return None
+    entry = spec.cases[0]
+    over = {**spec.params, **entry["params"], **point}
+    table = pd.DataFrame([list(x) for x in loads], columns=list(names))
+    try:
+        vals = S.resolve_inputs("stream", entry["case"] or spec.case, over, table)
+    except P.ParameterError:
+        return None
+    res, _ = api.simulate_resolved(vals)
+    cyc = res["cycles"]
+    dlim = vals["dalpha_perm"] if limits.deflection_max is None else limits.deflection_max
+    # safe as in REPORT.md §6 (report.stream_safety): every cycle scraped within the overload and
+    # deflection limits; the start amplitude, the stream's answer to the residual criterion, is reported
+    safe = (res["n_scraped"] == res["n_cycles"] and res["worst_overload"] <= limits.overload
+            and res["worst_deflection"] <= dlim)
+    return {"n_cycles": int(res["n_cycles"]), "n_scraped": int(res["n_scraped"]),
+            "first_failure": int(res["first_failure"]), "worst_overload": float(res["worst_overload"]),
+            "worst_deflection": float(res["worst_deflection"]),
+            "worst_start_amplitude": float(res["worst_start_amplitude"]), "period": float(vals["period"]),
+            "worst_overload_cycle": int(cyc["overload"].to_numpy().argmax()), "safe": bool(safe)}
+
+
 def judge(per_load, limits: E.Limits) -> dict:
     """One design point's summary (envelope.summarize over all its loads) as a dict."""
     return E.summarize(per_load, [], limits).iloc[0].to_dict()
@@ -436,6 +470,8 @@ def run_design(spec, jobs: int = 1, progress: bool = False, out_dir: str | Path 
         pl = evaluate(spec, point, loads, simulate).assign(design=label)
         per_load.append(pl)
         rows.append(_row(label, point, judge(pl, cfg.limits), dense_of))
+        st = stream_check(spec, point, loads, cfg.limits)
+        rows[-1].update({f"stream_{k}": v for k, v in (st or {}).items()})
     verified = rows[0]
     floor = None
     if best is not None:  # the same second stage on the fresh loads: the floor from their best margin

@@ -62,6 +62,18 @@ def _comparison(res: Path, rec: dict) -> list:
                    f"{r['worst_overload']:.3f} | {_deg(r['worst_deflection_max'])} | "
                    f"{_deg(r['worst_residual_amplitude'])} | {r['min_margin']:+.3f} | {r['binding']} | "
                    f"{'yes' if r['feasible'] else 'no'} | {_load_text(load)} |")
+    if "stream_n_cycles" in cmp and cmp["stream_n_cycles"].notna().any():
+        n = int(cmp["stream_n_cycles"].dropna().iloc[0])
+        out += ["", f"The same {n} loads back to back, one per work cycle at period t_c (scene `stream`, MODEL.md §14, "
+                "in the sample's order: what one cycle leaves in the element is what the next starts from). Safe: every "
+                "cycle scraped within the overload and deflection limits (as in section 6); the start amplitude is "
+                "what the residual_amplitude criterion stands for.", "",
+                "| element | scraped | worst overload | worst deflection_max | largest start amplitude | safe |",
+                "|---|---|---|---|---|---|"]
+        for _, r in cmp[cmp["stream_n_cycles"].notna()].iterrows():
+            out.append(f"| {r['design']} | {int(r['stream_n_scraped'])} of {n} | {r['stream_worst_overload']:.3f} | "
+                       f"{_deg(r['stream_worst_deflection'])} | {_deg(r['stream_worst_start_amplitude'])} | "
+                       f"{'yes' if r['stream_safe'] else 'no'} |")
     return out
 
 

@@ -122,3 +122,18 @@ def test_prefer_the_least_damping_within_the_best_margin(tmp_path):
     assert any("least B2 within 0.05" in x for x in D.summary_lines(rec))
     with pytest.raises(S.SpecError, match="design.prefer"):
         load(TINY.replace("optimizer:", "prefer: {L: min}\n      optimizer:"))
+
+
+def test_stream_check_runs_the_loads_back_to_back():
+    sp = load(TINY)
+    loads = sp.envelope.loads
+    point = {"B2": 72.0, "K2": 570.0}
+    st = D.stream_check(sp, point, loads, sp.design.limits)
+    single = D.evaluate(sp, point, loads)
+    assert st["n_cycles"] == len(loads) and st["period"] == 1.36
+    # the first cycle starts from rest: it is the single cycle of the first load
+    first = D.stream_check(sp, point, loads[:1], sp.design.limits)
+    assert first["worst_overload"] == pytest.approx(single["overload"].iloc[0], rel=1e-9)
+    assert st["safe"] == (st["n_scraped"] == st["n_cycles"] and st["worst_overload"] <= 1.0
+                          and st["worst_deflection"] <= 0.2618)
+    assert D.stream_check(sp, {"drive": "free"}, loads, sp.design.limits) is None  # a free fence has no stream
