@@ -376,7 +376,7 @@ def search(spec, cfg: DesignConfig, jobs: int = 1, progress: bool = False, simul
             pool = multiprocessing.get_context("fork").Pool(jobs)
             workers = pool.map
         res = differential_evolution(_objective, bounds, seed=cfg.seed, maxiter=cfg.maxiter, popsize=cfg.popsize,
-                                     tol=cfg.tol, polish=False, updating="deferred" if jobs > 1 else "immediate",
+                                     tol=cfg.tol, polish=False, updating="deferred",  # the same for any jobs
                                      workers=workers, callback=callback, init="sobol")
     finally:
         bar.close()

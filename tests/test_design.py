@@ -95,10 +95,15 @@ def test_empty_feasible_region_names_the_binding_constraint(tmp_path):
 
 
 def test_an_optimum_on_a_bound_is_said(tmp_path):
+    cfg = load(TINY).design  # B2 10-200, K2 500-2100: 1 % of the ranges is 1.9 and 16
+    assert D.at_bounds({"B2": 199.0, "K2": 1000.0}, cfg) == {"B2": "upper"}
+    assert D.at_bounds({"B2": 11.0, "K2": 515.0}, cfg) == {"B2": "lower", "K2": "lower"}
+    assert D.at_bounds({"B2": 100.0, "K2": 1000.0}, cfg) == {}
     sp = load(TINY.replace("B2: {min: 10, max: 200}", "B2: {min: 10, max: 11}"))
     rec = D.run_design(sp, out_dir=tmp_path)
-    assert rec["at_bounds"] and all(k == "B2" for k in rec["at_bounds"])
-    assert any("bound" in x for x in D.summary_lines(rec))
+    assert rec["at_bounds"] == D.at_bounds(rec["design_variables"], sp.design)
+    rec["at_bounds"] = {"B2": "upper"}
+    assert any("B2 = " in x and "upper bound of its range [10, 11]" in x for x in D.summary_lines(rec))
 
 
 def test_scores_rank_feasible_points_before_infeasible_ones():
@@ -137,3 +142,10 @@ def test_stream_check_runs_the_loads_back_to_back():
     assert st["safe"] == (st["n_scraped"] == st["n_cycles"] and st["worst_overload"] <= 1.0
                           and st["worst_deflection"] <= 0.2618)
     assert D.stream_check(sp, {"drive": "free"}, loads, sp.design.limits) is None  # a free fence has no stream
+
+
+def test_the_search_is_the_same_for_any_number_of_jobs():
+    sp = load(TINY)
+    one = D.search(sp, sp.design, jobs=1)
+    two = D.search(sp, sp.design, jobs=2)
+    assert one.raw == two.raw and one.point == two.point and one.nfev == two.nfev
