@@ -27,9 +27,6 @@ from . import params as P
 
 SAMPLE_KEYS = ("corners", "sobol", "lhs", "seed", "invalid")
 ACROSS = "across"
-#: constraint name -> (result column, how the worst is taken, unit)
-CONSTRAINTS = {"overload": ("overload", "max", "-"), "deflection_max": ("deflection_max", "max", "rad"),
-               "residual_amplitude": ("residual_amplitude", "max", "rad")}
 RESIDUAL_MAX_DEFAULT = math.radians(1.0)  # rad: the fence is home (report.RESIDUAL_REASON)
 _SIG = 6  # sampled load values: 6 significant digits (micrometres, milligrams)
 
@@ -57,7 +54,8 @@ class Envelope:
     skipped: list = field(default_factory=list)  # (load values, reason)
 
     def definition(self) -> dict:
-        """JSON-able definition (how the loads were made; part of the spec's hash)."""
+        """JSON-able definition: how the loads were made (the loads themselves enter the spec's
+        hash as its `envelope` axis)."""
         dims = {}
         for name, d in self.dims.items():
             kind = d[0]
