@@ -80,7 +80,8 @@ def test_loads_that_cannot_start_are_named_or_skipped():
     ("envelope: {m1: {min: -1, max: 5}}", ["m1"]),
     ("grid: {L: [0.2, 0.3]}\nenvelope: {L: {min: 0.2, max: 0.7}}", ["envelope.L", "grid.L"]),
     ("grid: {P_max: [0.7, 0.8]}\nenvelope: {dP: across}", ["P_max varies"]),
-    ("scene: impact\nenvelope: {L: {min: 0.2, max: 0.7}}", ["scene cycle or stream"]),
+    ("scene: impact\nenvelope: {L: {min: 0.2, max: 0.7}}", ["needs scene: cycle"]),
+    ("scene: stream\nenvelope: {L: {min: 0.2, max: 0.7}}", ["needs scene: cycle"]),
 ])
 def test_bad_envelopes_are_rejected(body, words):
     with pytest.raises(S.SpecError) as exc:
