@@ -149,3 +149,15 @@ def test_the_search_is_the_same_for_any_number_of_jobs():
     one = D.search(sp, sp.design, jobs=1)
     two = D.search(sp, sp.design, jobs=2)
     assert one.raw == two.raw and one.point == two.point and one.nfev == two.nfev
+
+
+def test_cli_refuses_specs_without_the_section(tmp_path, capsys):
+    path = tmp_path / "plain.yaml"
+    path.write_text("params: {drive: flexible}\nenvelope: {L: [0.2, 0.7]}\n")
+    assert main(["design", str(path), "--quiet"]) == 2
+    assert "has no design: section" in capsys.readouterr().err
+    assert main(["sensitivity", str(path), "--quiet"]) == 2
+    assert "has no sensitivity: section" in capsys.readouterr().err
+    assert main(["design", str(path), "--jobs", "0"]) == 2
+    assert "--jobs must be >= 1" in capsys.readouterr().err
+    assert not (tmp_path / "results").exists()  # bad input changes nothing
