@@ -168,6 +168,8 @@ def cmd_grid(args: argparse.Namespace) -> int:
     say = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
     spec = S.load(args.spec)
     out = Path(args.out) if args.out else sweep.default_output(spec)
+    if spec.envelope is not None and spec.envelope.skipped:
+        say(f"note: {_skip_note(spec)}")
     if args.dry_run:
         return _dry_run(spec, out, args)
     try:
@@ -184,6 +186,121 @@ def cmd_grid(args: argparse.Namespace) -> int:
         f"{res.reused} reused) in {res.seconds:.1f} s, {rate:.1f} scenes/s on {where}")
     if res.failed_runs:
         say(f"warning: {res.failed_runs} scenes raised in the engine; their status is 'failed: exception ...'")
+    if spec.envelope is not None:
+        _envelope_points(spec, res.out, say)
+    return 0
+
+
+def _skip_note(spec: S.Spec) -> str:
+    from . import envelope as E
+
+    return E._skip_text(spec.envelope, "cannot start on the belt and are skipped (envelope.invalid: skip)")
+
+
+def _envelope_points(spec: S.Spec, out: Path, say) -> None:
+    """An envelope sweep: the per-design-point table beside the per-load one, and a summary."""
+    from . import envelope as E
+
+    path, pts = E.write_points(spec, out)
+    feas = int(pts["feasible"].sum())
+    best = pts.loc[pts["min_margin"].idxmax()]
+    by = E.design_columns(spec)
+    label = ", ".join(f"{c} = {best[c]:g}" if isinstance(best[c], float) else f"{c} = {best[c]}" for c in by)
+    say(f"wrote {path}: {len(pts)} design points x {len(spec.envelope.loads)} loads; "
+        f"{feas} keep every constraint for every load; largest smallest margin {best['min_margin']:.3f}"
+        + (f" at {label}" if label else "") + f" (binding: {best['binding']})")
+
+
+def add_design_parser(sub) -> argparse.ArgumentParser:
+    d = sub.add_parser(
+        "design", help="find the element that keeps every constraint for every load of an envelope",
+        description="Search the design variables of a spec's design: section (differential evolution, seeded) "
+                    "judging each point over the spec's envelope of loads; verify the optimum on a fresh, denser "
+                    "sample; compare it with the paper's and other elements. Writes DIR/recommended.json, "
+                    "DIR/comparison.parquet and DIR/verify_loads.parquet (sweeps/README.md, Envelopes).")
+    d.add_argument("spec", metavar="SPEC.yaml", help="a spec with envelope: and design: sections")
+    d.add_argument("--out", metavar="DIR", help="output directory (default: the design section's output)")
+    d.add_argument("--jobs", type=int, default=1, metavar="N", help="worker processes (default 1)")
+    d.add_argument("--quiet", action="store_true", help="no progress bar and no summary")
+    d.set_defaults(func=cmd_design)
+    return d
+
+
+def cmd_design(args: argparse.Namespace) -> int:
+    from . import design as D
+
+    if args.jobs < 1:
+        raise UsageError(f"--jobs {args.jobs} is not allowed: --jobs must be >= 1")
+    spec = S.load(args.spec)
+    if spec.design is None:
+        raise UsageError(f"{args.spec} has no design: section (variables, constraints, objective); see "
+                         f"sweeps/envelope.yaml")
+    say = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
+    if spec.envelope.skipped:
+        say(f"note: {_skip_note(spec)}")
+    rec = D.run_design(spec, jobs=args.jobs, progress=not args.quiet, out_dir=args.out, log=say)
+    if not args.quiet:
+        print("\n".join(D.summary_lines(rec)))
+    return 0
+
+
+def add_sensitivity_parser(sub) -> argparse.ArgumentParser:
+    g = sub.add_parser("sensitivity", help="Sobol indices of an element's worst results to the assumed inputs",
+                       description="Run a spec's sensitivity: section (Saltelli sample of the assumed inputs crossed "
+                                   "with its envelope, as a sweep) and write the Sobol indices S1 and ST (SALib: "
+                                   "pip install 'fencesweep[sensitivity]').")
+    g.add_argument("spec", metavar="SPEC.yaml", help="a spec with envelope: and sensitivity: sections")
+    g.add_argument("--out", metavar="PATH.parquet", help="the indices table (default: the section's output)")
+    g.add_argument("--jobs", type=int, default=None, metavar="N", help="worker processes (default: all cores)")
+    g.add_argument("--quiet", action="store_true", help="no progress bar and no summary")
+    g.set_defaults(func=cmd_sensitivity)
+    return g
+
+
+def cmd_sensitivity(args: argparse.Namespace) -> int:
+    from . import sensitivity as SA
+
+    if args.jobs is not None and args.jobs < 1:
+        raise UsageError(f"--jobs {args.jobs} is not allowed: --jobs must be >= 1")
+    if args.out is not None and not args.out.endswith(".parquet"):
+        raise UsageError(f"--out {args.out!r} must end with .parquet")
+    spec = S.load(args.spec)
+    if spec.sensitivity is None:
+        raise UsageError(f"{args.spec} has no sensitivity: section; see sweeps/sensitivity.yaml")
+    say = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
+    df = SA.run(spec, jobs=args.jobs, progress=not args.quiet, out=args.out, log=say)
+    if not args.quiet:
+        print("\n".join(SA.summary_lines(df)))
+    return 0
+
+
+def add_plot_design_parser(sub) -> argparse.ArgumentParser:
+    from .plots_design import FIGURES
+
+    what = list(FIGURES) + ["all"]
+    g = sub.add_parser("plot-design", help="draw the design figures (envelope map, loads, window, sensitivity)",
+                       description="Draw the figures of the design for every package into RESULTS/figures/ from "
+                                   "the tables of fencesweep grid sweeps/envelope.yaml and fencesweep design "
+                                   "(needs matplotlib). Figures: " + ", ".join(FIGURES))
+    g.add_argument("what", nargs="*", default=[], metavar="NAME",
+                   help=f"one or more of: {', '.join(what)} (default: all)")
+    g.add_argument("--results", default="results", metavar="DIR", help="directory of the tables (default: results)")
+    g.add_argument("--out", default=None, metavar="DIR", help="where the PNGs go (default: RESULTS/figures)")
+    g.set_defaults(func=cmd_plot_design)
+    return g
+
+
+def cmd_plot_design(args: argparse.Namespace) -> int:
+    from .plots_design import FIGURES, MissingTable, plot
+
+    bad = [w for w in args.what if w not in FIGURES and w != "all"]
+    if bad:
+        raise UsageError(f"plot-design {bad[0]!r}: no such figure (one of {', '.join(FIGURES)}, all)")
+    try:
+        for p in plot(args.what, Path(args.results), args.out, log=lambda m: print(m, file=sys.stderr)):
+            print(p)
+    except MissingTable as exc:
+        raise UsageError(str(exc)) from None
     return 0
 
 
@@ -262,6 +379,9 @@ def build_parser() -> argparse.ArgumentParser:
     from .plots import add_plot_parser  # matplotlib is imported only when a plot is drawn
 
     add_grid_parser(sub)
+    add_design_parser(sub)
+    add_sensitivity_parser(sub)
+    add_plot_design_parser(sub)
     add_plot_parser(sub)
     return ap
 

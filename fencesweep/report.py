@@ -433,6 +433,7 @@ def write_report(res: Path = Path("results"), residual_max_deg: float = RESIDUAL
         _differences_section,    # 4. where we differ from the paper
         _notes_section,          # 5. notes
         _stream_part,            # 6. consecutive cycles
+        _design_part,            # 7. design for every package (report_design.py; empty until `fencesweep design`)
     )
     L: list[str] = []
     for section in sections:
@@ -1246,6 +1247,12 @@ def _notes_section(I: ReportInputs) -> list[str]:
 
 def _stream_part(I: ReportInputs) -> list[str]:
     return stream_section(read_table(I.res, "period")) if table_path(I.res, "period").exists() else []
+
+
+def _design_part(I: ReportInputs) -> list[str]:
+    from .report_design import design_section  # issue 10: empty until `fencesweep design` has run
+
+    return design_section(I.res)
 
 
 # ---------------------------------------------------------------------------- streams (MODEL.md §14)

@@ -31,7 +31,7 @@ DERIVED_INPUTS = {"Psi": ("-", "relative damping B2 / (2 sqrt(K2 I2)); fixes K2 
 INPUT_NAMES = P.NAMES + tuple(DERIVED_INPUTS)
 
 TOP_KEYS = ("scene", "case", "params", "grid", "zip", "cases", "output", "invalid", "chunk_size",
-            "description", "loads")
+            "description", "loads", "envelope", "design", "sensitivity")
 AXIS_FORMS = ("linspace", "logspace", "range")
 INVALID_POLICIES = ("error", "skip")
 MAX_AXIS = 10_000_000
@@ -214,6 +214,9 @@ class Spec:
     source: str = ""
     path: str | None = None
     loads: list | None = None  # scene stream: one load per cycle (params.resolve_loads), for every scene
+    envelope: Any = None  # envelope.Envelope: its loads are the innermost axis (issue 10)
+    design: Any = None  # design.DesignConfig: constraints, objective, variables (fencesweep design)
+    sensitivity: Any = None  # sensitivity.parse_section: assumed inputs' ranges (fencesweep sensitivity)
     _shape: tuple = field(default=(), repr=False)
 
     def __post_init__(self):
@@ -269,6 +272,10 @@ class Spec:
         """Scene number -> the resolved parameter set of params.resolve (raises ParameterError)."""
         case, over = self.inputs(i)
         return resolve_inputs(self.scene, case, over, self.loads)
+
+    def load_base(self) -> dict:
+        """The envelope's placing and checking of loads for this spec (spec.load_base)."""
+        return load_base(self.scene, self.case, self.params, self.cases)
 
     # ---- identity ----------------------------------------------------------------------
     def normalized(self) -> dict:
@@ -453,9 +460,59 @@ def parse(data: Any, source: str = "", path: str | None = None) -> Spec:  # noqa
     desc = data.get("description") or ""
     if not isinstance(desc, str):
         raise SpecError(f"description = {desc!r}: expected text")
-    return Spec(scene=scene, case=case, params=base, axes=axes, cases=cases, output=output,
-                invalid=invalid, chunk_size=chunk, description=desc, source=source, path=path,
-                loads=_loads(data.get("loads"), scene))
+    env = _envelope(data.get("envelope"), scene, case, base, cases, origin)
+    if env is not None:
+        axes.append(Axis(env.names, tuple(env.loads), "envelope"))  # innermost: a point's loads together
+    sp = Spec(scene=scene, case=case, params=base, axes=axes, cases=cases, output=output,
+              invalid=invalid, chunk_size=chunk, description=desc, source=source, path=path,
+              loads=_loads(data.get("loads"), scene), envelope=env)
+    try:
+        if data.get("design") is not None:
+            from . import design as D
+
+            sp.design = D.parse_section(data["design"], sp)
+        if data.get("sensitivity") is not None:
+            from . import sensitivity as SA
+
+            sp.sensitivity = SA.parse_section(data["sensitivity"], sp)
+    except P.ParameterError as exc:
+        raise SpecError(str(exc)) from None
+    return sp
+
+
+def _envelope(raw: Any, scene: str, case: str | None, base: dict, cases: list, origin: dict):
+    """The spec's `envelope:` (fencesweep.envelope), its loads checked against every entry of cases."""
+    if raw is None:
+        return None
+    from . import envelope as E
+
+    if scene != "cycle":  # a stream's table has a row per cycle: its per-design-point judge is not written yet
+        raise SpecError(f"envelope is given with scene = {scene!r}: an envelope of loads needs scene: cycle "
+                        f"(for loads back to back, fencesweep design runs each element's loads as a stream)")
+    taken = dict(origin)
+    taken.update({n: f"params.{n}" for n in base})
+    for c in cases:
+        taken.update({n: f"{c['where']}.{n}" for n in c["params"]})
+    if "P_max" in origin and isinstance(raw, dict) and raw.get("dP") == E.ACROSS:
+        raise SpecError(f"envelope.dP = across needs one belt width, but P_max varies in {origin['P_max']}")
+    try:
+        return E.parse(raw, load_base(scene, case, base, cases), taken)
+    except P.ParameterError as exc:
+        raise SpecError(str(exc)) from None
+
+
+def load_base(scene: str, case: str | None, base: dict, cases: list) -> dict:
+    """What an envelope's loads are placed and checked against: "defaults", the fixed inputs of
+    the first entry of cases on the §12 defaults (P_max, L, A, phi0 for dP: across), and "check",
+    a function of a load that raises ParameterError when it cannot start in some entry of cases."""
+    first = cases[0]
+    defaults = {**P.defaults(), **P.CASES.get(first["case"] or case or "", {}), **base, **first["params"]}
+
+    def check(load: dict) -> None:
+        for c in cases:
+            resolve_inputs(scene, c["case"] or case, {**base, **c["params"], **load})
+
+    return {"defaults": defaults, "check": check}
 
 
 def _loads(raw: Any, scene: str) -> list | None:

@@ -33,12 +33,27 @@ for spec in "${SPECS[@]}"; do
   echo "results/$spec.parquet"
 done
 
+# 2b. design for every package (issue 10): the envelope map (419904 cycles, minutes), the
+#     recommendation, the operating window, the swing, and the sensitivity (needs SALib)
+rm -rf results/design results/envelope*.parquet results/window*.parquet results/swing.parquet results/tolerance.parquet results/tolerance_points.parquet results/sensitivity*.parquet
+fencesweep grid sweeps/envelope.yaml --quiet --no-resume "${JOBS[@]}"
+fencesweep design sweeps/envelope.yaml --quiet "${JOBS[@]}"
+fencesweep grid sweeps/window.yaml --quiet --no-resume "${JOBS[@]}"
+fencesweep grid sweeps/swing.yaml --quiet --no-resume "${JOBS[@]}"
+fencesweep grid sweeps/tolerance.yaml --quiet --no-resume "${JOBS[@]}"
+if python -c "import SALib" 2>/dev/null; then
+  fencesweep sensitivity sweeps/sensitivity.yaml --quiet "${JOBS[@]}"
+else
+  echo "skipping fencesweep sensitivity: SALib is not installed (pip install -e \".[sensitivity]\")"
+fi
+
 # 3. the single cycles the figures need (after b2k2 and fig5a_worst_v: the recommended element and the
 #    worst placements are read off them)
 fencesweep plot trajectories --results results
 
 # 4. figures and the report
 fencesweep plot all --results results
+fencesweep plot-design --results results   # envelope map, loads, window (and sensitivity when its table exists)
 fencesweep plot report --results results
 
 # 5. the benchmark pages that time the current kernel: work-precision against the reference (with
