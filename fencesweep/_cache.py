@@ -12,7 +12,7 @@ import os
 from pathlib import Path
 
 _PKG = Path(__file__).resolve().parent
-_KERNEL_SOURCES = ("layout.py", "results.py", "numerics.py", "contact.py", "drive.py", "integrate.py",
+_KERNEL_SOURCES = ("jit.py", "layout.py", "results.py", "numerics.py", "contact.py", "drive.py", "integrate.py",
                    "scenes/load.py", "scenes/contacts.py", "scenes/cycle.py", "scenes/stream.py", "scenes/impact.py",
                    "scenes/freefall.py")
 _STAMP = _PKG / "__pycache__" / "kernels.sha256"

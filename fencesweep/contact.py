@@ -6,12 +6,12 @@ solved from e lives in calibrate.py (it runs the impact scene).
 from __future__ import annotations
 
 import math
-from numba import njit
+from .jit import kernel
 
 from . import layout as Lp
 
 
-@njit(cache=True, inline="always")
+@kernel(inline="always")
 def kelvin_force(D, Dd, kc, cd, law):
     """Unclipped normal force N and its elastic part N_el [N] for penetration D >= 0 [m] and
     rate Dd [m/s] (the sign of N says whether the contact pushes, MODEL.md §4).
@@ -27,21 +27,21 @@ def kelvin_force(D, Dd, kc, cd, law):
     return n_el + cd * Dd, n_el
 
 
-@njit(cache=True, inline="always")
+@kernel(inline="always")
 def normal_force(D, Dd, kc, cd, law):
     """Normal force N := max(kelvin_force, 0) (no adhesion, MODEL.md §4) and N_el [N]."""
     n, n_el = kelvin_force(D, Dd, kc, cd, law)
     return max(n, 0.0), n_el
 
 
-@njit(cache=True, inline="always")
+@kernel(inline="always")
 def coulomb(N, w, mu, eps):
     """Regularised Coulomb friction force [N] against the slip w [m/s] (MODEL.md §5):
     -mu N w / sqrt(w^2 + eps^2)."""
     return -mu * N * w / math.sqrt(w * w + eps * eps)
 
 
-@njit(cache=True, inline="always")
+@kernel(inline="always")
 def belt_friction(ux, uy, om, fmax, mmax, rho, eps):
     """Goyal-Ruina ellipse (paper eq. A9, MODEL.md §6): slip u = (ux, uy) [m/s], spin om [rad/s].
 
@@ -73,7 +73,7 @@ def hertz_contact_time(m1: float, k1: float, v0: float) -> float:
     return float(pulse_time(Lp.LAW_HERTZ, m1, k1, v0))
 
 
-@njit(cache=True)
+@kernel()
 def pulse_time(law, m, kc, speed):
     """Duration [s] of an undamped impact of mass m at the given speed (MODEL.md §7): Hertz
     3.2181 (m^2 / (k1^2 v))^0.2; linear pi sqrt(m / k_lin). The time scale of an impact."""
@@ -82,7 +82,7 @@ def pulse_time(law, m, kc, speed):
     return math.pi * math.sqrt(m / kc)
 
 
-@njit(cache=True)
+@kernel()
 def drop_speed(H):
     """v_H = sqrt(2 g H) [m/s] (MODEL.md §7)."""
     return math.sqrt(2.0 * Lp.G * H)

@@ -10,13 +10,13 @@ import math
 from functools import lru_cache
 
 import numpy as np
-from numba import njit
+from .jit import kernel
 
 from . import layout as Lp
 from .integrate import hermite_basis
 
 
-@njit(cache=True)
+@kernel()
 def rocker_angle(theta, a, b, d):
     """Rocker angle beta(theta) and d beta/d theta of the open crank-rocker (MODEL.md §2).
 
@@ -42,7 +42,7 @@ def rocker_angle(theta, a, b, d):
     return beta, dbeta
 
 
-@njit(cache=True, inline="always")
+@kernel(inline="always")
 def drive_angle(t, p):
     """alpha_w(t) [rad] and its rate [rad/s] (MODEL.md §2); at rest for t < 0 and t > t_c.
 
@@ -73,7 +73,7 @@ def drive_angle(t, p):
     return aw, db * om
 
 
-@njit(cache=True)
+@kernel()
 def fill_rocker_table(a, b, d, theta0, beta0, out):
     """Tabulate beta(theta) - beta0, beta', beta'' at theta0 + 2 pi i / n, i = 0..n
     (out has 3 (n + 1) entries; beta'' by a central difference of the exact beta')."""

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
+from .jit import kernel
 
 METHOD_DOPRI5, METHOD_RK4 = 0, 1
 N_STAGES = 7  # stage vectors kept per step (DOPRI5: 6 + the FSAL stage f(t + h, y1))
@@ -48,7 +48,7 @@ DP_P = (
 DP_ORDER_EST = 4  # order of the error estimate: the controller's exponent is 1 / (4 + 1)
 
 
-@njit(cache=True, inline="always")
+@kernel(inline="always")
 def dopri5_step(fun, t, y, h, p, iw, K, tmp, y1, aux):
     """One DOPRI5 step from (t, y) with K[0] = f(t, y) given. Fills K[1..6] (K[6] is
     f(t + h, y1): the FSAL stage, also the error estimate's last stage) and y1."""
@@ -78,7 +78,7 @@ RK4_C = (0.0, 0.5, 0.5, 1.0)
 RK4_B = (1 / 6, 1 / 3, 1 / 3, 1 / 6)
 
 
-@njit(cache=True, inline="always")
+@kernel(inline="always")
 def rk4_step(fun, t, y, h, p, iw, K, tmp, y1, aux):
     """One classical RK4 step with K[0] = f(t, y) given; K[6] = f(t + h, y1) on return."""
     n = y.shape[0]
@@ -91,7 +91,7 @@ def rk4_step(fun, t, y, h, p, iw, K, tmp, y1, aux):
     fun(t + h, y1, p, iw, K[6], aux)
 
 
-@njit(cache=True, inline="always")
+@kernel(inline="always")
 def take_step(method, fun, t, y, h, p, iw, K, tmp, y1, aux, atol, rtol, n_ctrl):
     """One step of `method`; returns the error norm of the step (acceptable when <= 1;
     0 for the fixed-step RK4, which has no estimate)."""
@@ -102,7 +102,7 @@ def take_step(method, fun, t, y, h, p, iw, K, tmp, y1, aux, atol, rtol, n_ctrl):
     return error_norm(K, h, y, y1, atol, rtol, n_ctrl)
 
 
-@njit(cache=True)
+@kernel()
 def error_norm(K, h, y0, y1, atol, rtol, n_ctrl):
     """RMS over the first n_ctrl components of e_i / sc_i, with e = h sum_k E_k K_k the
     difference of the 5th- and 4th-order solutions and sc_i = atol_i + rtol max(|y0_i|, |y1_i|)
@@ -117,7 +117,7 @@ def error_norm(K, h, y0, y1, atol, rtol, n_ctrl):
     return math.sqrt(acc / n_ctrl)
 
 
-@njit(cache=True)
+@kernel()
 def dense_coeffs(method, K, h, y0, y1, Q, n):
     """Coefficients Q[0..3] of the step's continuous extension (module docstring)."""
     if method == METHOD_RK4:
@@ -136,14 +136,14 @@ def dense_coeffs(method, K, h, y0, y1, Q, n):
             Q[j, m] = h * acc
 
 
-@njit(cache=True, inline="always")
+@kernel(inline="always")
 def dense_eval(y0, Q, theta, out, n):
     """y(t0 + theta h) on the first n components (Horner in theta)."""
     for m in range(n):
         out[m] = y0[m] + theta * (Q[0, m] + theta * (Q[1, m] + theta * (Q[2, m] + theta * Q[3, m])))
 
 
-@njit(cache=True, inline="always")
+@kernel(inline="always")
 def next_step(h, err, safety, fac_min, fac_max):
     """Step after one with error norm err (II.4, eq. 4.13): h (1/err)^(1/5), damped by a
     safety factor and kept within [fac_min, fac_max] times h."""
@@ -153,7 +153,7 @@ def next_step(h, err, safety, fac_min, fac_max):
     return h * min(fac_max, max(fac_min, fac))
 
 
-@njit(cache=True, inline="always")
+@kernel(inline="always")
 def bisect(pred, ctx, lo, hi, tol):
     """Event location: pred(ctx, lo) is False and pred(ctx, hi) is True; returns the final
     bracket (lo, hi), hi - lo <= tol, with the event in it (hi is just past the event)."""
@@ -169,7 +169,7 @@ def bisect(pred, ctx, lo, hi, tol):
 GOLDEN = 0.6180339887498949
 
 
-@njit(cache=True, inline="always")
+@kernel(inline="always")
 def golden_max(q, ctx, lo, hi, tol):
     """Maximum of a unimodal q(ctx, theta) on [lo, hi] by golden-section search (Kiefer 1953);
     returns (theta, q) of the best point seen."""
@@ -195,7 +195,7 @@ def golden_max(q, ctx, lo, hi, tol):
     return x2, q2
 
 
-@njit(cache=True, inline="always")
+@kernel(inline="always")
 def hermite_basis(s, h):
     """Weights of y0, h f0, y1, h f1 (the last two scaled by h) in the cubic Hermite
     interpolant at fraction s of an interval of size h: h00 = 2s^3 - 3s^2 + 1,

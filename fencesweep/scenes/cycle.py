@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
+from ..jit import kernel
 
 from .. import integrate as I
 from .. import layout as Lp
@@ -64,7 +64,7 @@ TRAJ_UNITS = ("s", "m", "m", "rad", "m/s", "m/s", "rad/s", "rad", "rad", "rad/s"
  A_STAGE, N_ACC) = (0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 17 + N_Q, 17 + N_Q + 5)
 
 
-@njit(cache=True, inline="always")
+@kernel(inline="always")
 def fence_state(t, y, p, mode):
     """(alpha, alpha', alpha_w, alpha_w'): the fence follows alpha_w when kinematic (§3)."""
     aw, daw = drive_angle(t, p)
@@ -75,7 +75,7 @@ def fence_state(t, y, p, mode):
 
 # ---------------------------------------------------------------- right-hand side
 
-@njit(cache=True, inline="always")
+@kernel(inline="always")
 def add_contact(aux, ax_n, fx, fy, tq, tau, n, p_diss, p_fric, D):
     """Add one contact's forces (contacts.py) to the sums in aux: on the load, the moment on the
     fence, its normal force to the fence or rail sum, the dissipated powers, the penetration."""
@@ -89,7 +89,7 @@ def add_contact(aux, ax_n, fx, fy, tq, tau, n, p_diss, p_fric, D):
     aux[AX_DMAX] = max(aux[AX_DMAX], D)
 
 
-@njit(cache=True, inline="always")
+@kernel(inline="always")
 def contact_sum(y, p, iw, ca, sa, dal, aux):
     """Sum into aux the forces of every slot that is not APART (MODEL.md §5): on the load
     (AX_FX, AX_FY, AX_TQ), the moment on the fence (AX_TAU), the normal-force sums and the
@@ -125,7 +125,7 @@ def contact_sum(y, p, iw, ca, sa, dal, aux):
         add_contact(aux, AX_NF, a, b, c, d, n, pd, pf, D)
 
 
-@njit(cache=True, inline="always")
+@kernel(inline="always")
 def load_rhs(y, p, iw, ca, sa, dal, dy, aux):
     """Load equations (MODEL.md §1, §5, §6): velocities, and accelerations from belt friction
     and the contacts; the closed-form belt ride when it rides. Returns the moment on the fence."""
@@ -148,7 +148,7 @@ def load_rhs(y, p, iw, ca, sa, dal, dy, aux):
     return aux[AX_TAU]
 
 
-@njit(cache=True)
+@kernel()
 def rhs(t, y, p, iw, dy, aux):
     """Right-hand side of the cycle in the mode of iw; fills dy and aux (contact forces).
     Fence (MODEL.md §3): I2 alpha'' = B2 (alpha_w' - alpha') + K2 (alpha_w - alpha) + tau."""
@@ -179,7 +179,7 @@ def rhs(t, y, p, iw, dy, aux):
 
 # ---------------------------------------------------------------- contact slots
 
-@njit(cache=True, inline="always")
+@kernel(inline="always")
 def slot_eval(k, y, p, iw, ca, sa, dal, cphi, sphi):
     """(code, tag, gap, gap rate) of contact slot k at state y, its code moved on from the one
     in iw (contacts.next_code); the tag is the tip's edge, or a corner's side sigma_j (§5.1);
@@ -221,7 +221,7 @@ def slot_eval(k, y, p, iw, ca, sa, dal, cphi, sphi):
     return next_code(cur, D, Dd, True, kc, cd, law, d_gap, d_force), edge, gap, rate
 
 
-@njit(cache=True, inline="always")
+@kernel(inline="always")
 def frame_at(t, y, p, iw):
     """What slot_eval needs of the fence and the load at (t, y): cos and sin of alpha, alpha',
     cos and sin of phi."""
@@ -229,7 +229,7 @@ def frame_at(t, y, p, iw):
     return math.cos(al), math.sin(al), dal, math.cos(y[2]), math.sin(y[2])
 
 
-@njit(cache=True)
+@kernel()
 def classify(t, y, p, iw, codes, gaps, rates, tags):
     """Codes, gaps and gap rates of every slot at (t, y); returns the tip's edge. Without a
     load every slot is apart."""
@@ -253,7 +253,7 @@ def classify(t, y, p, iw, codes, gaps, rates, tags):
     return edge
 
 
-@njit(cache=True, inline="always")
+@kernel(inline="always")
 def slot_changed(k, code, tag, iw):
     """Has slot k left the code it had at the step's start, or (tag) a corner its side, the
     tip the edge it pushes?"""
@@ -264,7 +264,7 @@ def slot_changed(k, code, tag, iw):
     return k == TIP and code != APART and tag != iw[IW_EDGE]
 
 
-@njit(cache=True)
+@kernel()
 def update_sides(t, y, p, iw):
     """Side memory sigma_j (MODEL.md §5.1): beyond the tip sigma := sign(h) (0 -> +1);
     behind the pivot sigma := +1. Returns whether any side changed."""
@@ -290,7 +290,7 @@ def update_sides(t, y, p, iw):
 
 # ---------------------------------------------------------------- events on the dense output
 
-@njit(cache=True)
+@kernel()
 def _mask_changed(ctx, theta):
     """Predicate for integrate.bisect: has any slot in ctx's mask changed at theta?"""
     t0, h, y0, Q, p, iw, tmp, mask = ctx
@@ -304,7 +304,7 @@ def _mask_changed(ctx, theta):
     return False
 
 
-@njit(cache=True)
+@kernel()
 def _neg_gap(ctx, theta):
     """-gap of one slot at theta (golden_max of it is the gap's minimum)."""
     t0, h, y0, Q, p, iw, tmp, k = ctx
@@ -314,14 +314,14 @@ def _neg_gap(ctx, theta):
     return -g
 
 
-@njit(cache=True, inline="always")
+@kernel(inline="always")
 def outcome_hit(kind, y, p):
     """Has outcome `kind` (0 scraped, 1 escaped) happened at state y (MODEL.md §9)?"""
     m = outcome_margin(kind, y, p)
     return m >= 0.0 if kind == 0 else m > 0.0
 
 
-@njit(cache=True)
+@kernel()
 def _outcome_reached(ctx, theta):
     """Predicate for integrate.bisect: has outcome `kind` happened at theta?"""
     y0, Q, p, tmp, kind = ctx
@@ -329,7 +329,7 @@ def _outcome_reached(ctx, theta):
     return outcome_hit(kind, tmp, p)
 
 
-@njit(cache=True)
+@kernel()
 def graze_theta(t, h, y0, Q, p, iw, tmp, g0, r0, g1, r1, codes1):
     """Earliest theta at which a slot apart at both ends of the step touches in between: every
     gap whose rate changes sign from closing to opening is minimised on the dense output
@@ -350,7 +350,7 @@ def graze_theta(t, h, y0, Q, p, iw, tmp, g0, r0, g1, r1, codes1):
     return best, slot
 
 
-@njit(cache=True)
+@kernel()
 def find_event(t, h, y0, y1, Q, p, iw, tmp, g0, r0, g1, r1, codes1, tags1, exited):
     """First event inside the step [t, t + h] on its dense output: (theta just past it, kind)
     with kind 0 none (theta = 1), 1 a contact change or graze, 2 scraped, 3 escaped."""
@@ -381,7 +381,7 @@ def find_event(t, h, y0, y1, Q, p, iw, tmp, g0, r0, g1, r1, codes1, tags1, exite
 
 # ---------------------------------------------------------------- tracked maxima
 
-@njit(cache=True)
+@kernel()
 def quantities(t, y, p, iw, aux, dy, q, forces=True):
     """The tracked quantities at (t, y): fence and rail force sums, |alpha - alpha_w|, alpha.
     Without `forces` the force sums (which cost a right-hand side) are left as they are."""
@@ -397,7 +397,7 @@ def quantities(t, y, p, iw, aux, dy, q, forces=True):
     q[Q_ALPHA] = al
 
 
-@njit(cache=True, inline="always")
+@kernel(inline="always")
 def quantities_from_aux(t, y, p, iw, aux, q):
     """The tracked quantities at (t, y) with aux from rhs there."""
     al, dal, aw, daw = fence_state(t, y, p, iw[IW_MODE])
@@ -407,7 +407,7 @@ def quantities_from_aux(t, y, p, iw, aux, q):
     q[Q_ALPHA] = al
 
 
-@njit(cache=True, inline="always")
+@kernel(inline="always")
 def all_finite(y):
     for i in range(y.shape[0]):
         if not math.isfinite(y[i]):
@@ -415,7 +415,7 @@ def all_finite(y):
     return True
 
 
-@njit(cache=True)
+@kernel()
 def _quantity_at(ctx, theta):
     """One tracked quantity on the dense output (for golden_max)."""
     t0, h, y0, Q, p, iw, tmp, aux, dy, q, kind = ctx
@@ -424,7 +424,7 @@ def _quantity_at(ctx, theta):
     return q[kind]
 
 
-@njit(cache=True, inline="always")
+@kernel(inline="always")
 def near_maximum(q0, q1, acc, k):
     """Can this step hold a new maximum of tracked quantity k? Only if one of its end samples
     is within numerics.PEAK_CANDIDATE of the running maximum (the samples around an interior
@@ -437,7 +437,7 @@ def near_maximum(q0, q1, acc, k):
 UNJUDGED = -1.0  # rising[k] when the step before did not judge quantity k at its end
 
 
-@njit(cache=True)
+@kernel()
 def track_maxima(t, h, theta_end, y0, Q, p, iw, tmp, aux, dy, q0, q1, qa, qb, qs, ths, acc, rising, Ks, ys,
                  atol):
     """Running maxima of the tracked quantities over the step [t, t + theta_end h]: the end
@@ -492,7 +492,7 @@ def track_maxima(t, h, theta_end, y0, Q, p, iw, tmp, aux, dy, q0, q1, qa, qb, qs
 
 # ---------------------------------------------------------------- book-keeping
 
-@njit(cache=True)
+@kernel()
 def stage_of(iw):
     """Stage of MODEL.md §10 from the slots that carry force."""
     nfc = 0
@@ -510,7 +510,7 @@ def stage_of(iw):
     return Rs.STAGE_S1 if nfc == 1 else Rs.STAGE_S3
 
 
-@njit(cache=True, inline="always")
+@kernel(inline="always")
 def fence_pushed(iw):
     """Does any load-fence slot (corners on the fence, the tip) carry force?"""
     for k in (0, 1, 2, 3, TIP):
@@ -519,7 +519,7 @@ def fence_pushed(iw):
     return False
 
 
-@njit(cache=True)
+@kernel()
 def record(traj, row, t, y, p, iw, aux):
     """One trajectory row (TRAJ_COLUMNS) at (t, y), aux from rhs there; returns the row count,
     which goes on counting past the buffer's capacity (the caller grows it and reruns)."""
@@ -540,7 +540,7 @@ def record(traj, row, t, y, p, iw, aux):
     return row + 1
 
 
-@njit(cache=True)
+@kernel()
 def record_peaks(traj, row, t, h, theta_end, y0, p, iw, ths, tmp, dy, aux, Ks, ys, atol):
     """Trajectory rows at the maxima located inside the step (track_maxima's ths), in time
     order, each at the state of a step of the method to it: so that the trajectory's peaks are
@@ -562,7 +562,7 @@ def record_peaks(traj, row, t, h, theta_end, y0, p, iw, ths, tmp, dy, aux, Ks, y
         prev = th
 
 
-@njit(cache=True, inline="always")
+@kernel(inline="always")
 def new_push(iw, codes):
     """Does a slot apart in iw push in codes (a contact onset)?"""
     for k in range(N_SLOTS):
@@ -571,7 +571,7 @@ def new_push(iw, codes):
     return False
 
 
-@njit(cache=True)
+@kernel()
 def apply_contact_change(t, y, p, iw, codes, edge, acc):
     """Enter the slots' new codes at an event; count onsets and losses of load-fence contact
     (MODEL.md §10-§11); release the free fence at the first contact (§3)."""
@@ -594,7 +594,7 @@ def apply_contact_change(t, y, p, iw, codes, edge, acc):
         acc[A_T_LOSS] = t
 
 
-@njit(cache=True)
+@kernel()
 def drop_load(t, y, p, iw, acc, outcome):
     """The load leaves the run at t (outcome event, or a timeout before t_c): its results."""
     acc[A_OUTCOME] = outcome
@@ -611,7 +611,7 @@ def drop_load(t, y, p, iw, acc, outcome):
         iw[IW_CODE + k] = APART
 
 
-@njit(cache=True)
+@kernel()
 def try_ride(y, p, iw):
     """A load with no contact whose slip is below numerics.SNAP_SLIP eps_v rides the belt in
     closed form from here on (MODEL.md §8): velocity (v, 0), no spin. Returns whether it snapped."""
@@ -630,7 +630,7 @@ def try_ride(y, p, iw):
     return True
 
 
-@njit(cache=True, inline="always")
+@kernel(inline="always")
 def swing_amplitude(dev, rate, p, mode):
     """Undamped amplitude [rad] of the fence's swing about its drive from the deflection dev =
     alpha - alpha_w [rad] and its rate [rad/s] (MODEL.md §11 residual_amplitude, §14
@@ -642,7 +642,7 @@ def swing_amplitude(dev, rate, p, mode):
     return abs(dev)
 
 
-@njit(cache=True)
+@kernel()
 def at_t_c(t, y, p, iw, acc):
     """Results read at t_c (MODEL.md §11): residual deflection and amplitude, damper energy."""
     al, dal, aw, daw = fence_state(t, y, p, iw[IW_MODE])
@@ -651,7 +651,7 @@ def at_t_c(t, y, p, iw, acc):
     acc[A_E_DAMPER] = y[8]
 
 
-@njit(cache=True)
+@kernel()
 def start(p, y, iw, acc, atol):
     """Initial state, modes, accumulators and the error scales of the run."""
     initial_state(p, y)
@@ -678,7 +678,7 @@ def start(p, y, iw, acc, atol):
         atol[i] = tol * e_scale
 
 
-@njit(cache=True)
+@kernel()
 def after_step(t1, y1, p, iw, kind, codes1, edge1, acc):
     """Apply the event that ended a step at t1 (find_event's kind), the side memory and the
     closed-form ride. Returns True when the mode changed (the right-hand side must be
@@ -696,7 +696,7 @@ def after_step(t1, y1, p, iw, kind, codes1, edge1, acc):
     return changed
 
 
-@njit(cache=True, inline="always")
+@kernel(inline="always")
 def fence_free_of_load(iw):
     """No slot of the load is in contact."""
     for k in range(N_SLOTS):
@@ -705,7 +705,7 @@ def fence_free_of_load(iw):
     return True
 
 
-@njit(cache=True)
+@kernel()
 def run(p, y, y1, tmp, dy, K, Q, aux, auxs, iw, codes1, tags1, g0, r0, g1, r1, qv, acc, atol, rising, Ks, ys,
         traj, row):
     """The step loop of the cycle (module docstring). Returns the trajectory row count."""
@@ -797,7 +797,7 @@ def run(p, y, y1, tmp, dy, K, Q, aux, auxs, iw, codes1, tags1, g0, r0, g1, r1, q
     return row
 
 
-@njit(cache=True)
+@kernel()
 def finish(p, y, iw, acc, out):
     """The results of MODEL.md §11 from the run's accumulators."""
     if acc[A_STATUS] != Rs.ST_OK:

@@ -3,14 +3,14 @@ speed v_H = sqrt(2 g H), rigid wall, 1 DOF, no gravity during the contact. Its p
 the permitted dynamic load that a cycle's overload is measured against."""
 from __future__ import annotations
 
-from numba import njit
+from ..jit import kernel
 
 from .. import layout as Lp
 from ..contact import drop_speed
 from .impact import impact_kernel
 
 
-@njit(cache=True)
+@kernel()
 def freefall_kernel(p, out):
     """The free fall of MODEL.md §7 (IMPACT_RESULTS into out): the impact scene on a rigid wall."""
     impact_kernel(p, True, False, drop_speed(p[Lp.H]), out)

@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from ..jit import allocating, kernel
 
 from .. import integrate as I
 from .. import layout as Lp
@@ -26,7 +26,7 @@ N_STATE = 5
 IW_RIGID, IW_FREE = 0, 1
 
 
-@njit(cache=True, inline="always")
+@kernel(inline="always")
 def penetration(y, p, rigid):
     """D and D' of the point against the fence point R theta (module docstring)."""
     if rigid:
@@ -34,7 +34,7 @@ def penetration(y, p, rigid):
     return y[0] - p[Lp.R] * y[2], y[1] - p[Lp.R] * y[3]
 
 
-@njit(cache=True)
+@kernel()
 def impact_rhs(t, y, p, iw, dy, aux):
     """Right-hand side while the point is in contact; aux[0] = the Kelvin force N (MODEL.md §4;
     the run ends where it returns to 0, so it is not clipped here)."""
@@ -55,7 +55,7 @@ def impact_rhs(t, y, p, iw, dy, aux):
     aux[0] = N
 
 
-@njit(cache=True)
+@kernel()
 def _force_at(ctx, theta):
     """The Kelvin force on the dense output (golden_max, and bisect of its return to 0)."""
     y0, Q, p, iw, tmp, dy, aux = ctx
@@ -64,12 +64,12 @@ def _force_at(ctx, theta):
     return aux[0]
 
 
-@njit(cache=True)
+@kernel()
 def _released(ctx, theta):
     return _force_at(ctx, theta) <= 0.0
 
 
-@njit(cache=True)
+@allocating()
 def impact_kernel(p, rigid, free, w, out):
     """Integrate one impact from D = 0, D' = w until N first returns to 0 (the integrator of
     integrate.py at the tolerance p[TOL]); writes IMPACT_RESULTS into out."""

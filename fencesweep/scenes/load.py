@@ -3,12 +3,12 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
+from ..jit import kernel
 
 from .. import layout as Lp
 
 
-@njit(cache=True, inline="always")
+@kernel(inline="always")
 def corner_offset(j, hl, hw, cphi, sphi):
     """Offset of corner j from the centroid: local (+-L/2, +-A/2) rotated by phi (MODEL.md §1)."""
     lx = hl if (j == 0 or j == 3) else -hl
@@ -16,14 +16,14 @@ def corner_offset(j, hl, hw, cphi, sphi):
     return cphi * lx - sphi * ly, sphi * lx + cphi * ly
 
 
-@njit(cache=True, inline="always")
+@kernel(inline="always")
 def corner_motion(j, y, hl, hw, cphi, sphi):
     """Corner j: offset (rx, ry), position (gx, gy) and velocity (gvx, gvy) (MODEL.md §1)."""
     rx, ry = corner_offset(j, hl, hw, cphi, sphi)
     return rx, ry, y[0] + rx, y[1] + ry, y[3] - y[5] * ry, y[4] + y[5] * rx
 
 
-@njit(cache=True)
+@kernel()
 def initial_state(p, y):
     """MODEL.md §1: phi0; foremost corner at x = R_s, lowest at y = dP; belt velocity."""
     cphi = math.cos(p[Lp.PHI0])
@@ -44,7 +44,7 @@ def initial_state(p, y):
     y[3] = p[Lp.V]
 
 
-@njit(cache=True)
+@kernel()
 def min_corner_x(y, p):
     """Smallest x of the load's corners [m] (for the escape event)."""
     cphi = math.cos(y[2])
@@ -58,7 +58,7 @@ def min_corner_x(y, p):
     return xmin
 
 
-@njit(cache=True)
+@kernel()
 def outcome_margin(kind, y, p):
     """Outcome event functions (MODEL.md §9), >= 0 once the event has happened:
     0 scraped: y - P_max; 1 escaped: min_j x_Gj - l (> 0)."""

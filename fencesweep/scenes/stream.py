@@ -22,7 +22,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from ..jit import allocating, kernel
 
 from .. import integrate as I
 from .. import layout as Lp
@@ -34,14 +34,14 @@ from .cycle import (A_EXITED, A_QMAX, A_STATUS, A_T_EXIT, IW_EDGE, IW_MODE, IW_R
                     fence_state, finish, quantities_from_aux, record, rhs, run, start, swing_amplitude)
 
 
-@njit(cache=True, inline="always")
+@kernel(inline="always")
 def load_row(p, row):
     """The entries of p that belong to the load (layout.LOAD_SLOTS) into one row of a loads table."""
     for i in range(Lp.N_LOAD):
         row[i] = p[Lp.LOAD_SLOTS[i]]
 
 
-@njit(cache=True)
+@kernel()
 def cycle_params(p, load, period, last, pk):
     """pk: the parameters of one cycle of a stream, the scene's p with this cycle's load; every
     cycle but the last ends at the next one's start T at the latest (MODEL.md §14)."""
@@ -50,7 +50,7 @@ def cycle_params(p, load, period, last, pk):
     pk[Lp.TMAX] = p[Lp.TMAX] if last else min(p[Lp.TMAX], period)
 
 
-@njit(cache=True)
+@kernel()
 def begin_cycle(pk, y, iw, acc, atol, codes1, g0, r0, tags1, K, aux, qv, traj, row):
     """A new load at tau = 0 (MODEL.md §1) with the fence's (alpha, alpha') that y holds
     (0, 0 for the first cycle): the contacts it starts in, f(0, y), the tracked quantities'
@@ -69,7 +69,7 @@ def begin_cycle(pk, y, iw, acc, atol, codes1, g0, r0, tags1, K, aux, qv, traj, r
     return record(traj, row, 0.0, y, pk, iw, aux)
 
 
-@njit(cache=True)
+@kernel()
 def start_results(pk, y, iw, o):
     """MODEL.md §14: start_deflection dalpha(t_k), start_rate dalpha'(t_k), start_amplitude."""
     al, dal, aw, daw = fence_state(0.0, y, pk, iw[IW_MODE])
@@ -78,7 +78,7 @@ def start_results(pk, y, iw, o):
     o[Rs.RC_START_AMPLITUDE] = swing_amplitude(al - aw, dal - daw, pk, iw[IW_MODE])
 
 
-@njit(cache=True)
+@kernel()
 def end_cycle(pk, y, iw, acc, jam, o):
     """A load still on the belt when the window closed at T leaves as `jammed` (MODEL.md §14);
     then the results of §11 into o."""
@@ -87,7 +87,7 @@ def end_cycle(pk, y, iw, acc, jam, o):
     finish(pk, y, iw, acc, o)
 
 
-@njit(cache=True)
+@kernel()
 def rest(pk, t, t_end, y, y1, tmp, K, aux, iw, atol, traj, row, o):
     """The fence alone (no load; the drive at rest after t_c) from t to t_end, stepped under
     the cycle's error control (MODEL.md §8: only the fence's linear ODE remains). Its steps are
@@ -115,14 +115,14 @@ def rest(pk, t, t_end, y, y1, tmp, K, aux, iw, atol, traj, row, o):
     return row
 
 
-@njit(cache=True)
+@kernel()
 def shift_times(traj, first, stop, t_k):
     """Trajectory rows first .. stop - 1 (those that fit) from the cycle's time to the stream's."""
     for r in range(first, min(stop, traj.shape[0])):
         traj[r, 0] += t_k
 
 
-@njit(cache=True)
+@kernel()
 def not_run(out, k):
     """Cycles k.. of a stream stopped by a failed cycle: outcome failed, the status says why."""
     for j in range(k, out.shape[0]):
@@ -132,7 +132,7 @@ def not_run(out, k):
         out[j, Rs.RC_STATUS] = Rs.ST_NOT_RUN
 
 
-@njit(cache=True)
+@allocating()
 def stream_kernel(p, loads, period, out, traj, row_starts):
     """Simulate len(loads) work cycles starting every `period` [s] (MODEL.md §14), load k's
     parameters in loads[k] (layout.LOAD_SLOTS); write row k of out (STREAM_CYCLE_RESULTS) and
@@ -187,7 +187,7 @@ def stream_kernel(p, loads, period, out, traj, row_starts):
     return row
 
 
-@njit(cache=True)
+@allocating()
 def cycle_kernel(p, out, traj):
     """Simulate one work cycle (MODEL.md §8 `cycle`): a stream of one. Writes CYCLE_RESULTS
     into out and the time series into traj (rows of TRAJ_COLUMNS, as many as fit). Returns

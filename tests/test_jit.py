@@ -1,0 +1,40 @@
+"""The kernels' compile policy (fencesweep/jit.py): every compiled function of the kernel
+modules runs without Numba's reference counting, but for the three that allocate a run's
+work arrays; and a function under that policy cannot allocate."""
+import importlib
+
+import numpy as np
+import pytest
+from numba.core.dispatcher import Dispatcher
+from numba.core.errors import TypingError
+
+from fencesweep.jit import kernel
+
+KERNEL_MODULES = ("integrate", "drive", "contact", "scenes.contacts", "scenes.load", "scenes.cycle",
+                  "scenes.stream", "scenes.impact", "scenes.freefall")
+ALLOCATING = {"stream_kernel", "cycle_kernel", "impact_kernel"}
+
+
+def _dispatchers():
+    for name in KERNEL_MODULES:
+        mod = importlib.import_module(f"fencesweep.{name}")
+        for attr, obj in vars(mod).items():
+            if isinstance(obj, Dispatcher) and obj.__module__ == mod.__name__:
+                yield f"{name}.{attr}", attr, obj
+
+
+def test_every_kernel_function_runs_without_reference_counting_but_the_allocating_entry_points():
+    seen = list(_dispatchers())
+    assert len(seen) > 50
+    for qual, attr, disp in seen:
+        assert disp.targetoptions.get("_nrt") is (attr in ALLOCATING), qual
+    assert ALLOCATING <= {attr for _, attr, _ in seen}
+
+
+def test_a_kernel_function_that_allocates_does_not_compile():
+    @kernel()
+    def allocates(n):
+        return np.zeros(n).sum()
+
+    with pytest.raises(TypingError):
+        allocates(3)
