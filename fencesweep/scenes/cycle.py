@@ -329,6 +329,23 @@ def _outcome_reached(ctx, theta):
     return outcome_hit(kind, tmp, p)
 
 
+@kernel(inline="always")
+def graze_candidate(k, iw, codes1, g0, r0, g1, r1):
+    """Can slot k touch inside the step without changing its code at either end? Apart at both
+    ends, with a gap that closes at the start and opens at the end (graze_theta)."""
+    return (iw[IW_CODE + k] == APART and codes1[k] == APART and g0[k] > 0.0 and g1[k] > 0.0
+            and r0[k] < 0.0 and r1[k] > 0.0)
+
+
+@kernel(inline="always")
+def ensure_dense(method, K, h, y0, y1, Q, qok):
+    """The step's dense-output coefficients, formed the first time the step needs them (qok[0]
+    is 0 after every step taken): most steps have no event and no peak, and never need them."""
+    if qok[0] == 0:
+        I.dense_coeffs(method, K, h, y0, y1, Q, N_STATE)
+        qok[0] = 1
+
+
 @kernel()
 def graze_theta(t, h, y0, Q, p, iw, tmp, g0, r0, g1, r1, codes1):
     """Earliest theta at which a slot apart at both ends of the step touches in between: every
@@ -339,9 +356,7 @@ def graze_theta(t, h, y0, Q, p, iw, tmp, g0, r0, g1, r1, codes1):
     best = 2.0
     slot = -1
     for k in range(N_SLOTS):
-        if iw[IW_CODE + k] != APART or codes1[k] != APART:
-            continue
-        if not (g0[k] > 0.0 and g1[k] > 0.0 and r0[k] < 0.0 and r1[k] > 0.0):
+        if not graze_candidate(k, iw, codes1, g0, r0, g1, r1):
             continue
         th, ng = I.golden_max(_neg_gap, (t, h, y0, Q, p, iw, tmp, k), 0.0, 1.0, NU.PEAK_TOL)
         if ng > 0.0 and th < best and _mask_changed((t, h, y0, Q, p, iw, tmp, 1 << k), th):
@@ -351,27 +366,35 @@ def graze_theta(t, h, y0, Q, p, iw, tmp, g0, r0, g1, r1, codes1):
 
 
 @kernel()
-def find_event(t, h, y0, y1, Q, p, iw, tmp, g0, r0, g1, r1, codes1, tags1, exited):
+def find_event(t, h, y0, y1, K, Q, qok, p, iw, tmp, g0, r0, g1, r1, codes1, tags1, exited):
     """First event inside the step [t, t + h] on its dense output: (theta just past it, kind)
-    with kind 0 none (theta = 1), 1 a contact change or graze, 2 scraped, 3 escaped."""
+    with kind 0 none (theta = 1), 1 a contact change or graze, 2 scraped, 3 escaped. The ends
+    of the step tell which events can lie inside it; only then is its dense output formed."""
+    method = int(p[Lp.METHOD])
     mask = 0
+    grazing = False
     for k in range(N_SLOTS):
         if slot_changed(k, codes1[k], tags1[k], iw):
             mask |= 1 << k
+        grazing |= graze_candidate(k, iw, codes1, g0, r0, g1, r1)
     hi = 1.0 if mask != 0 else 2.0
-    th_g, slot = graze_theta(t, h, y0, Q, p, iw, tmp, g0, r0, g1, r1, codes1)
-    if slot >= 0 and th_g < hi:
-        hi = th_g
-        mask |= 1 << slot
+    if grazing:
+        ensure_dense(method, K, h, y0, y1, Q, qok)
+        th_g, slot = graze_theta(t, h, y0, Q, p, iw, tmp, g0, r0, g1, r1, codes1)
+        if slot >= 0 and th_g < hi:
+            hi = th_g
+            mask |= 1 << slot
     tol = NU.EVENT_TOL * max(1.0, t) / h
     theta = 1.0
     kind = 0
     if mask != 0:
+        ensure_dense(method, K, h, y0, y1, Q, qok)
         theta = I.bisect(_mask_changed, (t, h, y0, Q, p, iw, tmp, mask), 0.0, hi, tol)[1]
         kind = 1
     if not exited:
         for oc in range(2):
             if outcome_hit(oc, y1, p):
+                ensure_dense(method, K, h, y0, y1, Q, qok)
                 th = I.bisect(_outcome_reached, (y0, Q, p, tmp, oc), 0.0, 1.0, tol)[1]
                 if th <= theta:
                     theta = th
@@ -420,7 +443,7 @@ def _quantity_at(ctx, theta):
     """One tracked quantity on the dense output (for golden_max)."""
     t0, h, y0, Q, p, iw, tmp, aux, dy, q, kind = ctx
     I.dense_eval(y0, Q, theta, tmp, N_CTRL)
-    quantities(t0 + theta * h, tmp, p, iw, aux, dy, q)
+    quantities(t0 + theta * h, tmp, p, iw, aux, dy, q, kind < Q_DEFL)
     return q[kind]
 
 
@@ -437,53 +460,80 @@ def near_maximum(q0, q1, acc, k):
 UNJUDGED = -1.0  # rising[k] when the step before did not judge quantity k at its end
 
 
+@kernel(inline="always")
+def fence_slopes(t, y, p, iw):
+    """Time derivatives of the tracked fence quantities at (t, y): of the deflection
+    |alpha - alpha_w| (MODEL.md §11) and of alpha."""
+    al, dal, aw, daw = fence_state(t, y, p, iw[IW_MODE])
+    rate = dal - daw
+    if al - aw < 0.0:
+        rate = -rate
+    elif al == aw:
+        rate = abs(rate)
+    return rate, dal
+
+
 @kernel()
-def track_maxima(t, h, theta_end, y0, Q, p, iw, tmp, aux, dy, q0, q1, qa, qb, qs, ths, acc, rising, Ks, ys,
-                 atol):
+def peak_value(t, h, th, y0, p, iw, tmp, aux, dy, qs, Ks, ys, atol, k):
+    """Quantity k at t + th h from a step of the method to it, not from the dense output
+    (whose error is not controlled): one extra step per located peak."""
+    for i in range(N_STATE):
+        tmp[i] = y0[i]
+    rhs(t, tmp, p, iw, Ks[0], aux)
+    I.take_step(int(p[Lp.METHOD]), rhs, t, tmp, th * h, p, iw, Ks, dy, ys, aux, atol, p[Lp.TOL], N_CTRL)
+    quantities(t + th * h, ys, p, iw, aux, dy, qs, k < Q_DEFL)
+    return qs[k]
+
+
+@kernel()
+def track_maxima(t, h, theta_end, y0, y1, K, Q, qok, p, iw, tmp, aux, dy, q0, q1, qa, qb, qs, ths, acc, rising,
+                 Ks, ys, atol):
     """Running maxima of the tracked quantities over the step [t, t + theta_end h]: the end
     samples, and an interior maximum (the quantity rising at the start and falling at the
     end, judged on the dense output) located by golden-section search (MODEL.md §9).
     rising[k] says whether quantity k rose at the start (1, 0; UNJUDGED when the step before
     was far from its maximum, or after an event: rising[N_Q] = 1); on return it says so for
-    the step's end. The force sums cost a right-hand side per sample: they are sampled only
-    in steps near their running maximum. ths[k]: the fraction of the step at which quantity
+    the step's end. The fence's quantities are judged by their derivatives at the ends
+    (fence_slopes); the force sums, which have no cheap derivative, by samples on the dense
+    output, each costing a right-hand side, and only in steps near their running maximum. ths[k]: the fraction of the step at which quantity
     k's interior maximum was located, -1 where none was."""
     for k in range(N_Q):
         ths[k] = -1.0
     forces = near_maximum(q0, q1, acc, Q_NF) or near_maximum(q0, q1, acc, Q_NR)
+    method = int(p[Lp.METHOD])
     if rising[N_Q] != 0.0:
         for k in range(N_Q):
             rising[k] = UNJUDGED
-    d = 1e-3 * theta_end
-    judge = False
-    for k in range(N_Q):
-        if rising[k] == UNJUDGED and (forces or k >= Q_DEFL):
-            judge = True
-    if judge:  # the start's slope, on the dense output
-        I.dense_eval(y0, Q, d, tmp, N_CTRL)
-        quantities(t + d * h, tmp, p, iw, aux, dy, qa, forces)
-        for k in range(N_Q):
-            if rising[k] == UNJUDGED and (forces or k >= Q_DEFL):
-                rising[k] = 1.0 if qa[k] > q0[k] else 0.0
-    I.dense_eval(y0, Q, theta_end - d, tmp, N_CTRL)
-    quantities(t + (theta_end - d) * h, tmp, p, iw, aux, dy, qb, forces)
+    if forces:  # sampled a thousandth of the step inside its ends
+        ensure_dense(method, K, h, y0, y1, Q, qok)
+        d = 1e-3 * theta_end
+        if rising[Q_NF] == UNJUDGED or rising[Q_NR] == UNJUDGED:
+            I.dense_eval(y0, Q, d, tmp, N_CTRL)
+            quantities(t + d * h, tmp, p, iw, aux, dy, qa, True)
+            for k in range(Q_DEFL):
+                if rising[k] == UNJUDGED:
+                    rising[k] = 1.0 if qa[k] > q0[k] else 0.0
+        I.dense_eval(y0, Q, theta_end - d, tmp, N_CTRL)
+        quantities(t + (theta_end - d) * h, tmp, p, iw, aux, dy, qb, True)
+    sd, sa = fence_slopes(t, y0, p, iw)  # the fence's quantities: by their derivatives
+    if rising[Q_DEFL] == UNJUDGED:
+        rising[Q_DEFL] = 1.0 if sd > 0.0 else 0.0
+    if rising[Q_ALPHA] == UNJUDGED:
+        rising[Q_ALPHA] = 1.0 if sa > 0.0 else 0.0
+    sd, sa = fence_slopes(t + theta_end * h, y1, p, iw)
+    qb[Q_DEFL] = q1[Q_DEFL] - sd  # stand-ins for samples just before the end: only the sign of
+    qb[Q_ALPHA] = q1[Q_ALPHA] - sa  # their difference from q1 is read
     for k in range(N_Q):
         m = max(acc[A_QMAX + k], q0[k], q1[k])
         if k < Q_DEFL and not forces:
             acc[A_QMAX + k] = m
             rising[k] = UNJUDGED
             continue
-        if rising[k] == 1.0 and qb[k] > q1[k] and max(qb[k], q1[k], q0[k]) >= NU.PEAK_CANDIDATE * m:
+        if rising[k] == 1.0 and qb[k] > q1[k] and max(q1[k], q0[k]) >= NU.PEAK_CANDIDATE * m:
+            ensure_dense(method, K, h, y0, y1, Q, qok)
             th, qm = I.golden_max(_quantity_at, (t, h, y0, Q, p, iw, tmp, aux, dy, qs, k),
                                   0.0, theta_end, NU.PEAK_TOL)
-            # the value at the peak from a step of the method to it, not from the dense output
-            # (whose error is not controlled): one extra step per located peak
-            for i in range(N_STATE):
-                tmp[i] = y0[i]
-            rhs(t, tmp, p, iw, Ks[0], aux)
-            I.take_step(int(p[Lp.METHOD]), rhs, t, tmp, th * h, p, iw, Ks, dy, ys, aux, atol, p[Lp.TOL], N_CTRL)
-            quantities(t + th * h, ys, p, iw, aux, dy, qs)
-            m = max(m, qs[k])
+            m = max(m, peak_value(t, h, th, y0, p, iw, tmp, aux, dy, qs, Ks, ys, atol, k))
             ths[k] = th
         acc[A_QMAX + k] = m
         rising[k] = 1.0 if q1[k] > qb[k] else 0.0
@@ -706,7 +756,7 @@ def fence_free_of_load(iw):
 
 
 @kernel()
-def run(p, y, y1, tmp, dy, K, Q, aux, auxs, iw, codes1, tags1, g0, r0, g1, r1, qv, acc, atol, rising, Ks, ys,
+def run(p, y, y1, tmp, dy, K, Q, qok, aux, auxs, iw, codes1, tags1, g0, r0, g1, r1, qv, acc, atol, rising, Ks, ys,
         traj, row):
     """The step loop of the cycle (module docstring). Returns the trajectory row count."""
     method = int(p[Lp.METHOD])
@@ -744,9 +794,10 @@ def run(p, y, y1, tmp, dy, K, Q, aux, auxs, iw, codes1, tags1, g0, r0, g1, r1, q
             continue
         acc[A_STEPS] += 1.0
         acc[A_ERR] += err * tol
-        I.dense_coeffs(method, K, h, y, y1, Q, N_STATE)
+        qok[0] = 0  # the step's dense output is formed when first needed (ensure_dense)
         edge1 = classify(t + h, y1, p, iw, codes1, g1, r1, tags1)
-        theta, kind = find_event(t, h, y, y1, Q, p, iw, tmp, g0, r0, g1, r1, codes1, tags1, acc[A_EXITED] != 0.0)
+        theta, kind = find_event(t, h, y, y1, K, Q, qok, p, iw, tmp, g0, r0, g1, r1, codes1, tags1,
+                                 acc[A_EXITED] != 0.0)
         if kind == 0:
             t1 = tc if hits_tc else t + h
         else:
@@ -757,8 +808,8 @@ def run(p, y, y1, tmp, dy, K, Q, aux, auxs, iw, codes1, tags1, g0, r0, g1, r1, q
             quantities_from_aux(t1, y1, p, iw, aux, qv[1])  # aux of the FSAL stage f(t1, y1)
         else:
             quantities(t1, y1, p, iw, aux, dy, qv[1])
-        track_maxima(t, h, theta, y, Q, p, iw, tmp, auxs, dy, qv[0], qv[1], qv[2], qv[3], qv[4], qv[5], acc,
-                     rising, Ks, ys, atol)
+        track_maxima(t, h, theta, y, y1, K, Q, qok, p, iw, tmp, auxs, dy, qv[0], qv[1], qv[2], qv[3], qv[4], qv[5],
+                     acc, rising, Ks, ys, atol)
         if traj.shape[0] > 0:
             row = record_peaks(traj, row, t, h, theta, y, p, iw, qv[5], tmp, dy, auxs, Ks, ys, atol)
         if acc[A_EXITED] == 0.0:

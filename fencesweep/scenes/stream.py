@@ -145,6 +145,7 @@ def stream_kernel(p, loads, period, out, traj, row_starts):
     dy = np.empty(n)
     K = np.empty((I.N_STAGES, n))
     Q = np.zeros((4, n))
+    qok = np.zeros(1, np.int64)  # Q holds the current step's dense output (cycle.ensure_dense)
     aux = np.zeros(N_AUX)
     auxs = np.zeros(N_AUX)  # the peak search's own: aux keeps f(t1, y1)'s forces
     iw = np.zeros(N_IW, np.int64)
@@ -171,7 +172,7 @@ def stream_kernel(p, loads, period, out, traj, row_starts):
         start_results(pk, y, iw, out[k])
         for i in range(N_Q + 1):
             rising[i] = 1.0
-        row = run(pk, y, y1, tmp, dy, K, Q, aux, auxs, iw, codes1, tags1, g0, r0, g1, r1, qv, acc, atol, rising,
+        row = run(pk, y, y1, tmp, dy, K, Q, qok, aux, auxs, iw, codes1, tags1, g0, r0, g1, r1, qv, acc, atol, rising,
                   Ks, ys, traj, row)
         end_cycle(pk, y, iw, acc, not last and period <= p[Lp.TMAX], out[k])
         failed = acc[A_STATUS] != Rs.ST_OK
