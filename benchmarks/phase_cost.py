@@ -182,7 +182,8 @@ def phase_times(case: str, drive: str, rounds: int, tools, hz: float) -> dict:
     from fencesweep import params
     from fencesweep.api import simulate_resolved
     from fencesweep.results import N_CYCLE_RESULTS
-    from fencesweep.scenes.cycle import TRAJ_COLUMNS, cycle_kernel
+    from fencesweep.scenes.cycle import TRAJ_COLUMNS
+    from fencesweep.scenes.stream import cycle_kernel
     from fencesweep.setup import prepare
 
     rdtsc, watch = tools
