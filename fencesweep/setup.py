@@ -15,7 +15,7 @@ from . import layout as Lp
 from . import numerics as NU
 from .calibrate import damping_coefficient
 from .contact import derived_k_lin, mean_footprint_radius
-from .drive import TABLE_SIZE, crank_rocker_geometry, max_drive_rate, rocker_table
+from .drive import TABLE_SIZE, max_drive_rate, rocker_table
 from .integrate import METHOD_DOPRI5, METHOD_RK4
 
 _LAW = {"hertz": Lp.LAW_HERTZ, "linear": Lp.LAW_LINEAR}
@@ -53,8 +53,6 @@ def _contact_part(vals: dict) -> np.ndarray:
     law = vals["contact_law"]
     p[Lp.LAW] = _LAW[law]
     p[Lp.M1] = vals["m1"]
-    p[Lp.K1] = vals["k1"]
-    p[Lp.E] = vals["e"]
     p[Lp.H] = vals["H"]
     p[Lp.LL] = p[Lp.AA] = math.inf
     c = damping_coefficient(float(vals["e"]), law)
@@ -63,7 +61,6 @@ def _contact_part(vals: dict) -> np.ndarray:
         p[Lp.CD] = c * math.sqrt(vals["m1"] * vals["k1"])  # q sqrt(m1 k1)
     else:
         k_lin = vals["k_lin"] if vals["k_lin"] is not None else derived_k_lin(vals["m1"], vals["k1"], vals["H"])
-        p[Lp.KLIN] = k_lin
         p[Lp.KC] = k_lin
         p[Lp.CD] = c * math.sqrt(vals["m1"] * k_lin)  # b_lin = beta sqrt(m1 k_lin)
     return p
@@ -72,12 +69,11 @@ def _contact_part(vals: dict) -> np.ndarray:
 def prepare(vals: dict) -> np.ndarray:
     """Fill the kernel parameter vector from a resolved parameter dict (params.resolve)."""
     p = _contact_part(vals)
-    for name, idx in (("v", Lp.V), ("P_max", Lp.PMAX), ("mu1", Lp.MU1), ("mu2", Lp.MU2), ("L", Lp.LL),
+    for name, idx in (("v", Lp.V), ("P_max", Lp.PMAX), ("mu2", Lp.MU2), ("L", Lp.LL),
                       ("A", Lp.AA), ("dP", Lp.DP), ("R_s", Lp.RS), ("phi0", Lp.PHI0), ("l", Lp.FL),
-                      ("m2", Lp.M2), ("I2", Lp.I2), ("B2", Lp.B2), ("K2", Lp.K2), ("t_c", Lp.TC),
-                      ("swing", Lp.SWING), ("coupler_ratio", Lp.CRATIO), ("dalpha_perm", Lp.DAPERM),
-                      ("R", Lp.R), ("w", Lp.W), ("eps_v", Lp.EPSV), ("t_max", Lp.TMAX),
-                      ("step_factor", Lp.STEPF)):
+                      ("I2", Lp.I2), ("B2", Lp.B2), ("K2", Lp.K2), ("t_c", Lp.TC),
+                      ("swing", Lp.SWING), ("dalpha_perm", Lp.DAPERM),
+                      ("R", Lp.R), ("eps_v", Lp.EPSV), ("t_max", Lp.TMAX)):
         p[idx] = vals[name]
     p[Lp.DRIVE] = _DRIVE[vals["drive"]]
     p[Lp.PROFILE] = _PROFILE[vals["profile"]]
@@ -87,9 +83,6 @@ def prepare(vals: dict) -> np.ndarray:
     rho_bar = mean_footprint_radius(L, A)
     p[Lp.MMAX] = p[Lp.FMAX] * rho_bar
     p[Lp.RHO] = rho_bar
-    if vals["profile"] == "crank_rocker":
-        a, b, d, th0, b0 = crank_rocker_geometry(float(vals["swing"]), float(vals["coupler_ratio"]))
-        p[Lp.CRA], p[Lp.CRB], p[Lp.CRD], p[Lp.TH0], p[Lp.BETA0] = a, b, d, th0, b0
     daw = max_drive_rate(float(vals["swing"]), float(vals["t_c"]), vals["profile"], float(vals["coupler_ratio"]))
     p[Lp.DAW_MAX] = daw
     p[Lp.FFORCE] = freefall_force(float(m1), float(vals["k1"]), float(vals["e"]), vals["contact_law"],

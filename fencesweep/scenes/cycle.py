@@ -264,26 +264,15 @@ def slot_changed(k, code, tag, iw):
     return k == TIP and code != APART and tag != iw[IW_EDGE]
 
 
-@kernel()
-def update_sides(t, y, p, iw):
-    """Side memory sigma_j (MODEL.md §5.1): beyond the tip sigma := sign(h) (0 -> +1);
-    behind the pivot sigma := +1. Returns whether any side changed."""
-    al, dal, aw, daw = fence_state(t, y, p, iw[IW_MODE])
-    ca, sa = math.cos(al), math.sin(al)
-    cphi, sphi = math.cos(y[2]), math.sin(y[2])
-    hl = 0.5 * p[Lp.LL]
-    hw = 0.5 * p[Lp.AA]
+@kernel(inline="always")
+def take_sides(iw, tags):
+    """Side memory sigma_j (MODEL.md §5.1) from classify's tags at the step's end (slot_eval
+    applies the rule: beyond the tip sigma := sign(h), 0 -> +1; behind the pivot sigma := +1).
+    Returns whether any side changed."""
     changed = False
-    for j in range(4):
-        rx, ry, gx, gy, gvx, gvy = corner_motion(j, y, hl, hw, cphi, sphi)
-        s = gx * ca + gy * sa
-        new = iw[j]
-        if s > p[Lp.FL]:
-            new = -1 if (-gx * sa + gy * ca) < 0.0 else 1
-        elif s < 0.0:
-            new = 1
-        if new != iw[j]:
-            iw[j] = new
+    for j in range(RAIL0):
+        if tags[j] != iw[j]:
+            iw[j] = tags[j]
             changed = True
     return changed
 
@@ -729,7 +718,7 @@ def start(p, y, iw, acc, atol):
 
 
 @kernel()
-def after_step(t1, y1, p, iw, kind, codes1, edge1, acc):
+def after_step(t1, y1, p, iw, kind, codes1, tags1, edge1, acc):
     """Apply the event that ended a step at t1 (find_event's kind), the side memory and the
     closed-form ride. Returns True when the mode changed (the right-hand side must be
     evaluated anew at t1)."""
@@ -739,7 +728,7 @@ def after_step(t1, y1, p, iw, kind, codes1, edge1, acc):
     elif kind >= 2:
         drop_load(t1, y1, p, iw, acc, Rs.SCRAPED if kind == 2 else Rs.ESCAPED)
     if iw[IW_LOAD] != 0:
-        changed |= update_sides(t1, y1, p, iw)
+        changed |= take_sides(iw, tags1)
         changed |= try_ride(y1, p, iw)
     if iw[IW_MODE] == FM_KINEMATIC:
         y1[6], y1[7] = drive_angle(t1, p)
@@ -816,7 +805,7 @@ def run(p, y, y1, tmp, dy, K, Q, qok, aux, auxs, iw, codes1, tags1, g0, r0, g1, 
             acc[A_STAGE + stage_of(iw)] += t1 - t
         h_next = I.next_step(h, err, NU.SAFETY, NU.FAC_MIN, NU.FAC_MAX)
         onset = kind == 1 and new_push(iw, codes1)
-        if after_step(t1, y1, p, iw, kind, codes1, edge1, acc):
+        if after_step(t1, y1, p, iw, kind, codes1, tags1, edge1, acc):
             rising[N_Q] = 1.0
             if onset:
                 h_next = min(h_next, NU.ONSET_STEP * pulse_time(p[Lp.LAW], p[Lp.M1], p[Lp.KC], atol[3] / tol))
