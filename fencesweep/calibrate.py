@@ -12,6 +12,7 @@ from functools import lru_cache
 import numpy as np
 
 from . import layout as Lp
+from ._cache import solved
 
 #: tolerance of the calibration's impacts: e(q) to ~1e-10, far below the 2e-4 of MODEL.md §4
 CALIBRATION_TOL = 1e-12
@@ -36,7 +37,13 @@ def restitution(c: float, law: str) -> float:
 @lru_cache(maxsize=None)
 def damping_coefficient(e: float, law: str = "hertz") -> float:
     """Dimensionless damping q (hertz) or beta (linear) that gives restitution e (MODEL.md §4);
-    b_lin = beta sqrt(m1 k_lin), q enters as q sqrt(m1 k1). Brent's method on e(q) (decreasing)."""
+    b_lin = beta sqrt(m1 k_lin), q enters as q sqrt(m1 k1). Solved once per (e, law) and kept
+    beside the compiled kernels (_cache.solved)."""
+    return solved("damping_coefficient", (float(e), law), lambda: solve_damping_coefficient(float(e), law))
+
+
+def solve_damping_coefficient(e: float, law: str) -> float:
+    """damping_coefficient by Brent's method on e(q) (decreasing)."""
     from scipy.optimize import brentq
 
     if e >= 1.0:

@@ -13,6 +13,7 @@ import numpy as np
 from .jit import kernel
 
 from . import layout as Lp
+from ._cache import solved
 from .integrate import hermite_basis
 
 
@@ -114,7 +115,14 @@ def _beta_unwrapped(theta: float, a: float, b: float, d: float, ref: float) -> f
 
 @lru_cache(maxsize=256)
 def crank_rocker_geometry(swing: float, coupler_ratio: float) -> tuple[float, float, float, float, float]:
-    """(a, b, d, theta0, beta0): link lengths and the crank angle of minimum rocker angle."""
+    """(a, b, d, theta0, beta0): link lengths and the crank angle of minimum rocker angle, solved
+    once per (swing, coupler_ratio) and kept beside the compiled kernels (_cache.solved)."""
+    key = (float(swing), float(coupler_ratio))
+    return solved("crank_rocker_geometry", key, lambda: solve_crank_rocker_geometry(*key))
+
+
+def solve_crank_rocker_geometry(swing: float, coupler_ratio: float) -> tuple[float, float, float, float, float]:
+    """crank_rocker_geometry: the minimum of the rocker angle by Brent's method on its derivative."""
     from scipy.optimize import brentq
 
     a = math.sin(swing / 2)
