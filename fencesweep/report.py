@@ -13,6 +13,7 @@ Layout of a results directory (default `results/`):
 """
 from __future__ import annotations
 
+import json
 import math
 import os
 import platform
@@ -1078,7 +1079,22 @@ def _three_elements(I: ReportInputs) -> list[str]:
               f"has left, its deflection swings between {sr[0]:+.1f} and {sr[1]:+.1f} deg and changes sign {sr[2]} times "
               f"before t_c, against {sd[0]:+.1f} to {sd[1]:+.1f} deg and {sd[2]} sign changes for the well-damped element "
               "(`recommended.png`). Both keep every constraint for both cases.", ""]
+    L += _envelope_pointer(I.res)
     return L
+
+
+def _envelope_pointer(res: Path) -> list[str]:
+    """Section 2's "recommended" is the two-case maps' choice: say where the envelope's is."""
+    path = res / "design" / "recommended.json"
+    if not path.exists():
+        return []
+    rec = json.loads(path.read_text())
+    dv = rec.get("design_variables", {})
+    if rec.get("status") != "feasible" or "B2" not in dv or "K2" not in dv:
+        return []
+    return [f"\"Recommended\" in this section and in `recommended.png` is the choice of the two named loads' maps. "
+            f"Over a whole load envelope (section 7) the element to build is B2 = {dv['B2']:g}, K2 = {dv['K2']:g} "
+            "([`design/recommended.json`](design/recommended.json)).", ""]
 
 
 def _paper_element_section(I: ReportInputs) -> list[str]:

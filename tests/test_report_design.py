@@ -88,3 +88,16 @@ def test_design_figures_are_drawn(res, tmp_path):
     notes = []
     assert len(PD.plot(["all"], res, tmp_path, log=notes.append)) == 2  # window, sensitivity: no tables
     assert len(notes) == 2 and "sensitivity" in notes[1]
+
+
+def test_section_2_points_to_the_envelope_recommendation_only_when_there_is_one(tmp_path):
+    from fencesweep.report import _envelope_pointer
+
+    assert _envelope_pointer(tmp_path) == []
+    (tmp_path / "design").mkdir()
+    path = tmp_path / "design" / "recommended.json"
+    path.write_text(json.dumps({"status": "feasible", "design_variables": {"B2": 231.0, "K2": 925.0}}))
+    text = " ".join(_envelope_pointer(tmp_path))
+    assert "B2 = 231, K2 = 925" in text
+    path.write_text(json.dumps({"status": "infeasible", "design_variables": {"B2": 231.0, "K2": 925.0}}))
+    assert _envelope_pointer(tmp_path) == []
