@@ -463,13 +463,19 @@ def fence_slopes(t, y, p, iw):
 
 
 @kernel()
-def peak_value(t, h, th, y0, p, iw, tmp, aux, dy, qs, Ks, ys, atol, k):
-    """Quantity k at t + th h from a step of the method to it, not from the dense output
-    (whose error is not controlled): one extra step per located peak."""
+def step_to(t, h, th, y0, p, iw, tmp, aux, dy, Ks, ys, atol):
+    """ys: the state at t + th h from a step of the method from (t, y0) to it, not from the
+    dense output (whose error is not controlled); the value of a located peak is read there."""
     for i in range(N_STATE):
         tmp[i] = y0[i]
     rhs(t, tmp, p, iw, Ks[0], aux)
     I.take_step(int(p[Lp.METHOD]), rhs, t, tmp, th * h, p, iw, Ks, dy, ys, aux, atol, p[Lp.TOL], N_CTRL)
+
+
+@kernel()
+def peak_value(t, h, th, y0, p, iw, tmp, aux, dy, qs, Ks, ys, atol, k):
+    """Quantity k at t + th h, from step_to: one extra step per located peak."""
+    step_to(t, h, th, y0, p, iw, tmp, aux, dy, Ks, ys, atol)
     quantities(t + th * h, ys, p, iw, aux, dy, qs, k < Q_DEFL)
     return qs[k]
 
@@ -592,10 +598,7 @@ def record_peaks(traj, row, t, h, theta_end, y0, p, iw, ths, tmp, dy, aux, Ks, y
                 th = ths[k]
         if th >= theta_end * (1.0 - 1e-9):
             return row
-        for i in range(N_STATE):
-            tmp[i] = y0[i]
-        rhs(t, tmp, p, iw, Ks[0], aux)
-        I.take_step(int(p[Lp.METHOD]), rhs, t, tmp, th * h, p, iw, Ks, dy, ys, aux, atol, p[Lp.TOL], N_CTRL)
+        step_to(t, h, th, y0, p, iw, tmp, aux, dy, Ks, ys, atol)
         rhs(t + th * h, ys, p, iw, dy, aux)
         row = record(traj, row, t + th * h, ys, p, iw, aux)
         prev = th
