@@ -76,16 +76,12 @@ class DesignConfig:
 
 # ------------------------------------------------------------------------------ parsing
 def _num(value: Any, where: str, lo: float | None = None) -> float:
-    if isinstance(value, str):
-        try:
-            value = float(value)
-        except ValueError:
-            pass
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+    x = P.as_finite_number(value)
+    if x is None:
         raise DesignError(f"{where} = {value!r}: expected a finite number")
-    if lo is not None and value < lo:
+    if lo is not None and x < lo:
         raise DesignError(f"{where} = {value!r}: must be >= {lo}")
-    return float(value)
+    return x
 
 
 def _int(value: Any, where: str, lo: int) -> int:

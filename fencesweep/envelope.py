@@ -70,15 +70,11 @@ class Envelope:
 
 # ------------------------------------------------------------------------------ parsing
 def _number(name: str, value: Any, where: str) -> float:
-    if isinstance(value, str):
-        try:
-            value = float(value)
-        except ValueError:
-            pass
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+    x = P.as_finite_number(value)
+    if x is None:
         raise EnvelopeError(f"{where} = {value!r}: expected a finite number")
     try:
-        return float(P.check_value(name, float(value)))
+        return float(P.check_value(name, x))
     except P.ParameterError as exc:
         raise EnvelopeError(f"{where}: {exc}") from None
 

@@ -142,6 +142,20 @@ def _unknown(name: str, what: str = "parameter") -> ParameterError:
     return ParameterError(f"unknown {what} {name!r}{hint} (known: {', '.join(NAMES)})")
 
 
+def as_finite_number(value: Any) -> float | None:
+    """A spec's value as a finite float: a number, or text that reads as one (YAML 1.1 reads
+    "1e-3" as text); None for anything else (a bool, nan, inf, other text). The callers say
+    what was expected where."""
+    if isinstance(value, str):
+        try:
+            value = float(value)
+        except ValueError:
+            return None
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        return None
+    return float(value)
+
+
 def check_value(name: str, value: Any) -> Any:  # noqa: C901 (11 > 10: existing code)
     """Check one value against its row of the table; return it normalised (float/str/None)."""
     if name not in BY_NAME:

@@ -114,14 +114,10 @@ def _form_args(form: str, args: Any, where: str) -> tuple:
         raise SpecError(f"{where}.{form} = {args!r}: expected {shape}")
     out = []
     for k, a in zip(keys, args):
-        if isinstance(a, str):
-            try:
-                a = float(a)
-            except ValueError:
-                pass
-        if isinstance(a, bool) or not isinstance(a, (int, float)) or not math.isfinite(a):
+        x = P.as_finite_number(a)
+        if x is None:
             raise SpecError(f"{where}.{form}: {k} = {a!r} is not a finite number; expected {shape}")
-        out.append(a)
+        out.append(x if isinstance(a, str) else a)  # a number stays as written (int or float)
     return tuple(out)
 
 
@@ -339,8 +335,29 @@ def _check_case_name(name: Any, where: str) -> str:
     return name
 
 
-def parse(data: Any, source: str = "", path: str | None = None) -> Spec:  # noqa: C901 (35 > 10: existing code)
+def parse(data: Any, source: str = "", path: str | None = None) -> Spec:
     """A spec from its parsed YAML (a dict). Raises SpecError on anything wrong."""
+    scene, case = _scene_and_case(data)
+    base = {}
+    for name, value in _mapping(data.get("params"), "params", "parameter: value").items():
+        base[name] = check_input(name, value, f"params.{name}")
+    origin: dict[str, str] = {}  # parameter -> where it varies
+    axes = _grid_axes(data, base, origin) + _zip_axes(data, base, origin)
+    cases = _cases(data.get("cases"), case, origin)
+    _check_k2_or_psi(base, cases, origin)
+    output, invalid, chunk, desc = _options(data)
+    env = _envelope(data.get("envelope"), scene, case, base, cases, origin)
+    if env is not None:
+        axes.append(Axis(env.names, tuple(env.loads), "envelope"))  # innermost: a point's loads together
+    sp = Spec(scene=scene, case=case, params=base, axes=axes, cases=cases, output=output,
+              invalid=invalid, chunk_size=chunk, description=desc, source=source, path=path,
+              loads=_loads(data.get("loads"), scene), envelope=env)
+    _sections(data, sp)
+    return sp
+
+
+def _scene_and_case(data: Any) -> tuple:
+    """The spec's top level: its keys, its scene and its named case (or None)."""
     if not isinstance(data, dict):
         raise SpecError(f"a spec is a mapping with keys {', '.join(TOP_KEYS)}; got {type(data).__name__}")
     for key in data:
@@ -354,33 +371,38 @@ def parse(data: Any, source: str = "", path: str | None = None) -> Spec:  # noqa
     case = data.get("case")
     if case is not None:
         case = _check_case_name(case, "case")
+    return scene, case
 
-    base = {}
-    for name, value in _mapping(data.get("params"), "params", "parameter: value").items():
-        base[name] = check_input(name, value, f"params.{name}")
 
-    axes: list[Axis] = []
-    origin: dict[str, str] = {}  # parameter -> where it varies
+def _claim(name: str, where: str, base: dict, origin: dict) -> None:
+    """Parameter `name` varies at `where`: it may vary on one axis only and not also be fixed."""
+    if name in origin:
+        raise SpecError(f"{where}: {name} already varies in {origin[name]}; a parameter can be on one "
+                        f"axis only (use zip to vary parameters together)")
+    if name in base:
+        raise SpecError(f"{where}: {name} is also fixed in params ({name} = {base[name]!r}); "
+                        f"remove one of them")
+    origin[name] = where
 
-    def claim(name: str, where: str):
-        if name in origin:
-            raise SpecError(f"{where}: {name} already varies in {origin[name]}; a parameter can be on one "
-                            f"axis only (use zip to vary parameters together)")
-        if name in base:
-            raise SpecError(f"{where}: {name} is also fixed in params ({name} = {base[name]!r}); "
-                            f"remove one of them")
-        origin[name] = where
 
+def _grid_axes(data: dict, base: dict, origin: dict) -> list:
+    """`grid:`, one axis per parameter."""
+    axes = []
     for name, raw in _mapping(data.get("grid"), "grid", "parameter: axis").items():
         where = f"grid.{name}"
         values = axis_values(name, raw, where)
-        claim(name, where)
+        _claim(name, where, base, origin)
         axes.append(Axis((name,), tuple((v,) for v in values), where))
+    return axes
 
+
+def _zip_axes(data: dict, base: dict, origin: dict) -> list:
+    """`zip:`, one axis per group of parameters that vary together."""
     zraw = data.get("zip")
     groups = [] if zraw is None else ([zraw] if isinstance(zraw, dict) else zraw)
     if not isinstance(groups, list):
         raise SpecError(f"zip = {zraw!r}: expected a mapping parameter: axis (or a list of such mappings)")
+    axes = []
     for g, group in enumerate(groups):
         gwhere = "zip" if isinstance(zraw, dict) else f"zip[{g}]"
         group = _mapping(group, gwhere, "parameter: axis")
@@ -390,7 +412,7 @@ def parse(data: Any, source: str = "", path: str | None = None) -> Spec:  # noqa
         for name, raw in group.items():
             where = f"{gwhere}.{name}"
             cols[name] = axis_values(name, raw, where)
-            claim(name, where)
+            _claim(name, where, base, origin)
         lengths = {n: len(v) for n, v in cols.items()}
         if len(set(lengths.values())) > 1:
             raise SpecError(f"{gwhere}: axes that vary together must have the same length; got "
@@ -400,44 +422,51 @@ def parse(data: Any, source: str = "", path: str | None = None) -> Spec:  # noqa
         if len(set(values)) != len(values):
             raise SpecError(f"{gwhere}: two positions repeat the same values; every position must differ")
         axes.append(Axis(names, values, gwhere))
+    return axes
 
-    craw = data.get("cases")
-    cases = []
+
+def _cases(craw: Any, case: str | None, origin: dict) -> list:
+    """`cases:`, each a named case or a mapping of parameters; one base entry without it."""
     if craw is None:
-        cases.append({"case": None, "params": {}, "where": "base"})
-    else:
-        if not isinstance(craw, list) or not craw:
-            raise SpecError(f"cases = {craw!r}: expected a non-empty list of named cases "
-                            f"({', '.join(P.CASES)}) or mappings of parameters")
-        for k, entry in enumerate(craw):
-            where = f"cases[{k}]"
-            if isinstance(entry, str):
-                entry = {"case": entry}
-            if not isinstance(entry, dict):
-                raise SpecError(f"{where} = {entry!r}: expected a named case ({', '.join(P.CASES)}) or a "
-                                f"mapping of parameters (optionally with case: NAME)")
-            ecase = entry.get("case")
-            if ecase is not None:
-                ecase = _check_case_name(ecase, f"{where}.case")
-                if case is not None:
-                    raise SpecError(f"{where}.case = {ecase!r} conflicts with the top-level case = {case!r}: "
-                                    f"name the case in one place")
-            eparams = {}
-            for name, value in entry.items():
-                if name == "case":
-                    continue
-                if name in origin:
-                    raise SpecError(f"{where}.{name}: {name} also varies in {origin[name]}; remove one of them")
-                eparams[name] = check_input(name, value, f"{where}.{name}")
-            cases.append({"case": ecase, "params": eparams, "where": where})
-        seen = {}
-        for c in cases:
-            ident = json.dumps([c["case"], c["params"]], sort_keys=True)
-            if ident in seen:
-                raise SpecError(f"{c['where']} repeats {seen[ident]}; every entry of cases must differ")
-            seen[ident] = c["where"]
+        return [{"case": None, "params": {}, "where": "base"}]
+    if not isinstance(craw, list) or not craw:
+        raise SpecError(f"cases = {craw!r}: expected a non-empty list of named cases "
+                        f"({', '.join(P.CASES)}) or mappings of parameters")
+    cases = [_case_entry(entry, f"cases[{k}]", case, origin) for k, entry in enumerate(craw)]
+    seen = {}
+    for c in cases:
+        ident = json.dumps([c["case"], c["params"]], sort_keys=True)
+        if ident in seen:
+            raise SpecError(f"{c['where']} repeats {seen[ident]}; every entry of cases must differ")
+        seen[ident] = c["where"]
+    return cases
 
-    # K2 and Psi both given for the same scenes
+
+def _case_entry(entry: Any, where: str, case: str | None, origin: dict) -> dict:
+    """One entry of `cases:`."""
+    if isinstance(entry, str):
+        entry = {"case": entry}
+    if not isinstance(entry, dict):
+        raise SpecError(f"{where} = {entry!r}: expected a named case ({', '.join(P.CASES)}) or a "
+                        f"mapping of parameters (optionally with case: NAME)")
+    ecase = entry.get("case")
+    if ecase is not None:
+        ecase = _check_case_name(ecase, f"{where}.case")
+        if case is not None:
+            raise SpecError(f"{where}.case = {ecase!r} conflicts with the top-level case = {case!r}: "
+                            f"name the case in one place")
+    eparams = {}
+    for name, value in entry.items():
+        if name == "case":
+            continue
+        if name in origin:
+            raise SpecError(f"{where}.{name}: {name} also varies in {origin[name]}; remove one of them")
+        eparams[name] = check_input(name, value, f"{where}.{name}")
+    return {"case": ecase, "params": eparams, "where": where}
+
+
+def _check_k2_or_psi(base: dict, cases: list, origin: dict) -> None:
+    """K2 and Psi both given for the same scenes is an error."""
     for c in cases:
         where_of = {n: f"params.{n}" for n in base}
         where_of.update({n: f"{c['where']}.{n}" for n in c["params"]})
@@ -446,6 +475,9 @@ def parse(data: Any, source: str = "", path: str | None = None) -> Spec:  # noqa
             raise SpecError(f"K2 (in {where_of['K2']}) and Psi (in {where_of['Psi']}) are both set: "
                             f"Psi fixes K2 = (B2 / (2 Psi))^2 / I2; set one of them")
 
+
+def _options(data: dict) -> tuple:
+    """(output, invalid, chunk_size, description), checked."""
     output = data.get("output")
     if output is not None and (not isinstance(output, str) or not output.endswith(".parquet")):
         raise SpecError(f"output = {output!r}: expected a path ending in .parquet")
@@ -460,12 +492,11 @@ def parse(data: Any, source: str = "", path: str | None = None) -> Spec:  # noqa
     desc = data.get("description") or ""
     if not isinstance(desc, str):
         raise SpecError(f"description = {desc!r}: expected text")
-    env = _envelope(data.get("envelope"), scene, case, base, cases, origin)
-    if env is not None:
-        axes.append(Axis(env.names, tuple(env.loads), "envelope"))  # innermost: a point's loads together
-    sp = Spec(scene=scene, case=case, params=base, axes=axes, cases=cases, output=output,
-              invalid=invalid, chunk_size=chunk, description=desc, source=source, path=path,
-              loads=_loads(data.get("loads"), scene), envelope=env)
+    return output, invalid, chunk, desc
+
+
+def _sections(data: dict, sp: Spec) -> None:
+    """The `design:` and `sensitivity:` sections, parsed by their modules."""
     try:
         if data.get("design") is not None:
             from . import design as D
@@ -477,7 +508,6 @@ def parse(data: Any, source: str = "", path: str | None = None) -> Spec:  # noqa
             sp.sensitivity = SA.parse_section(data["sensitivity"], sp)
     except P.ParameterError as exc:
         raise SpecError(str(exc)) from None
-    return sp
 
 
 def _envelope(raw: Any, scene: str, case: str | None, base: dict, cases: list, origin: dict):
