@@ -13,10 +13,39 @@ kernel(**options) is numba.njit with
 allocating(**options) is njit(cache=True) with the counting on (said explicitly: a callee
 otherwise inherits its caller's setting) for the three entry points that allocate a run's
 work arrays once (stream_kernel, cycle_kernel, impact_kernel).
+
+Loading the kernels without Numba's BLAS probe: the first compiled function a process loads
+makes Numba import its NumPy implementations (numba.np.arraymath), and that module asks at
+import whether a BLAS is there by importing scipy.linalg.cython_blas, which imports all of
+scipy.linalg (and numpy.f2py): measured 0.27 s of a process's 0.6 s kernel load. No kernel
+uses BLAS (no np.dot, no linalg), so this module imports numba.np.arraymath once with that
+probe answered "no" (the module hidden for the length of the import, then restored). The
+one effect: in this process Numba's np.convolve and np.correlate use Numba's own loop instead
+of BLAS. np.dot and np.linalg are unaffected: they import scipy when they are compiled.
+benchmarks/throughput.py measures the kernel load; tests/test_jit.py checks that loading the
+kernels does not import scipy.linalg.
 """
 from __future__ import annotations
 
+import sys
+
 from numba import njit
+
+_BLAS_PROBE = "scipy.linalg.cython_blas"
+
+
+def _import_numpy_support_without_blas_probe() -> None:
+    """Import numba.np.arraymath with its BLAS probe answered "no" (module docstring)."""
+    if "numba.np.arraymath" in sys.modules or _BLAS_PROBE in sys.modules:
+        return  # already imported, or BLAS is loaded anyway: nothing to save
+    sys.modules[_BLAS_PROBE] = None  # an import of a None entry raises ImportError at once
+    try:
+        import numba.np.arraymath  # noqa: F401
+    finally:
+        del sys.modules[_BLAS_PROBE]
+
+
+_import_numpy_support_without_blas_probe()
 
 
 def kernel(**options):

@@ -38,3 +38,21 @@ def test_a_kernel_function_that_allocates_does_not_compile():
 
     with pytest.raises(TypingError):
         allocates(3)
+
+
+def test_loading_the_kernels_does_not_import_scipy_linalg():
+    """jit.py answers Numba's BLAS probe "no" while Numba loads its NumPy support (the probe
+    imports all of scipy.linalg, 0.27 s a process); the kernels run the same without it."""
+    import json
+    import subprocess
+    import sys
+
+    from fencesweep import api
+
+    here = api.simulate(case="small_far")  # compiles into the cache if it is not there
+    code = ("import sys, json\nfrom fencesweep import api\nr = api.simulate(case='small_far')\n"
+            "print(json.dumps(['scipy.linalg' in sys.modules, r['peak_force']]))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    imported, peak = json.loads(out.stdout.strip().splitlines()[-1])
+    assert imported is False
+    assert peak == here["peak_force"]
