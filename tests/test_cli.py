@@ -93,3 +93,12 @@ def test_run_json_undefined_values_are_null(capsys):
     assert "NaN" not in out and res["peak_force"] == 0.0 and res["n_impacts"] == 0
     assert main(["run", "--case", "small_far", "--json"]) == 0  # a run with contact: a number
     assert isinstance(_strict_json(capsys.readouterr().out)["t_first_contact"], float)
+
+
+def test_the_parser_imports_neither_pandas_nor_numba():
+    """Every command builds the whole parser; pandas (0.2 s) and Numba (0.25 s) are imported
+    only by the commands that use them, so `--help` and a rejected argument answer at once."""
+    code = ("import sys\nfrom fencesweep.cli import build_parser\nbuild_parser()\n"
+            "print(sorted(m for m in ('pandas', 'numba', 'matplotlib') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"
