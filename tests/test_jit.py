@@ -2,12 +2,16 @@
 modules runs without Numba's reference counting, but for the three that allocate a run's
 work arrays; and a function under that policy cannot allocate."""
 import importlib
+import json
+import subprocess
+import sys
 
 import numpy as np
 import pytest
 from numba.core.dispatcher import Dispatcher
 from numba.core.errors import TypingError
 
+from fencesweep import api
 from fencesweep.jit import kernel
 
 KERNEL_MODULES = ("integrate", "drive", "contact", "scenes.contacts", "scenes.load", "scenes.cycle",
@@ -43,12 +47,6 @@ def test_a_kernel_function_that_allocates_does_not_compile():
 def test_loading_the_kernels_does_not_import_scipy_linalg():
     """jit.py answers Numba's BLAS probe "no" while Numba loads its NumPy support (the probe
     imports all of scipy.linalg, 0.27 s a process); the kernels run the same without it."""
-    import json
-    import subprocess
-    import sys
-
-    from fencesweep import api
-
     here = api.simulate(case="small_far")  # compiles into the cache if it is not there
     code = ("import sys, json\nfrom fencesweep import api\nr = api.simulate(case='small_far')\n"
             "print(json.dumps(['scipy.linalg' in sys.modules, r['peak_force']]))")
