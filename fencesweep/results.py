@@ -59,7 +59,7 @@ CYCLE_RESULTS = (
     ("max_penetration", "m", "largest penetration of any contact"),
     ("n_steps", "-", "integrator steps taken (accepted)"),
     ("n_rejected", "-", "steps rejected by the error control"),
-    ("error_estimate", "-", "sum of the accepted steps' local error estimates, relative to the error scales"),
+    ("error_estimate", "-", "root-sum-square of the accepted steps' local error estimates, relative to the error scales"),
     ("status", "-", "ok, or failed and why"),
 )
 IMPACT_RESULTS = (
