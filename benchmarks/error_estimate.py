@@ -30,7 +30,6 @@ import pandas as pd
 ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT / "benchmarks"), str(ROOT / "tests")]
 
-import make_reference  # noqa: E402
 import test_validation as tv  # noqa: E402  (the validation test's error definition and floors)
 
 #: the engine with the plain-sum estimate (the commit before the root-sum-square)
