@@ -54,17 +54,17 @@ def drive_angle(t, p):
     tc = p[Lp.TC]
     if t <= 0.0 or t >= tc:
         return 0.0, 0.0
-    om = 2.0 * math.pi / tc
+    om = p[Lp.OMEGA_C]
     if p[Lp.PROFILE] == Lp.PROFILE_HARMONIC:
         half = 0.5 * p[Lp.SWING]
         return half * (1.0 - math.cos(om * t)), half * om * math.sin(om * t)
     n = int(p[Lp.TAB_N])
-    u = t / tc * n
+    u = t * p[Lp.TAB_RATE]
     i = int(u)
     if i >= n:
         i = n - 1
     s = u - i
-    h = 2.0 * math.pi / n
+    h = p[Lp.TAB_H]
     a0 = Lp.N_P + i  # beta - beta0 at nodes i, i + 1
     b0 = a0 + (n + 1)  # beta'
     c0 = b0 + (n + 1)  # beta''

@@ -41,13 +41,16 @@ RHO = 28  # M_max / F_max
 FFORCE = 29  # free-fall reference peak force (MODEL.md §7)
 DAW_MAX = 30  # max |d alpha_w / dt| (the velocity scale of the error control)
 TAB_N = 31  # number of intervals of the crank-rocker table (0 for the harmonic profile)
+OMEGA_C = 32  # 2 pi / t_c, the crank's angular speed [rad/s]
+TAB_RATE = 33  # TAB_N / t_c: table intervals per second (drive.drive_angle multiplies, not divides)
+TAB_H = 34  # 2 pi / TAB_N, the crank angle of one table interval [rad] (1 for the harmonic profile)
 # --- numerics (numerics.py; filled by setup.prepare) ---
-METHOD = 32  # integrate.METHOD_DOPRI5 or METHOD_RK4
-TOL = 33  # local error tolerance (numerics.TOL x step_factor^5, floored)
-DT = 34  # fixed step of the RK4 baseline [s]
-H_MAX = 35  # largest step [s]
-SNAP = 36  # slip [m/s] under which a load without contacts rides the belt in closed form
-N_P = 37  # length of the header; the crank-rocker table follows it (drive.py)
+METHOD = 35  # integrate.METHOD_DOPRI5 or METHOD_RK4
+TOL = 36  # local error tolerance (numerics.TOL x step_factor^5, floored)
+DT = 37  # fixed step of the RK4 baseline [s]
+H_MAX = 38  # largest step [s]
+SNAP = 39  # slip [m/s] under which a load without contacts rides the belt in closed form
+N_P = 40  # length of the header; the crank-rocker table follows it (drive.py)
 
 # law / drive / profile codes
 LAW_HERTZ, LAW_LINEAR = 0, 1

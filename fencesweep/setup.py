@@ -88,8 +88,12 @@ def prepare(vals: dict) -> np.ndarray:
     p[Lp.FFORCE] = freefall_force(float(m1), float(vals["k1"]), float(vals["e"]), vals["contact_law"],
                                   None if vals["k_lin"] is None else float(vals["k_lin"]), float(vals["H"]))
     _numerics(p, vals)
+    p[Lp.OMEGA_C] = 2.0 * math.pi / float(vals["t_c"])
+    p[Lp.TAB_H] = 1.0
     if vals["profile"] == "crank_rocker":
         p[Lp.TAB_N] = TABLE_SIZE
+        p[Lp.TAB_RATE] = TABLE_SIZE / float(vals["t_c"])
+        p[Lp.TAB_H] = 2.0 * math.pi / TABLE_SIZE
         return np.concatenate((p, rocker_table(float(vals["swing"]), float(vals["coupler_ratio"]))))
     return p
 
