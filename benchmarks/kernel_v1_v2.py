@@ -17,6 +17,8 @@ import sys
 import tempfile
 from pathlib import Path
 
+from main_job_v1_v2 import export  # a revision's package, exported from git
+
 ROOT = Path(__file__).resolve().parents[1]
 V1 = "fbbc326"
 CODE = r"""
@@ -74,9 +76,7 @@ def run(where: Path) -> dict:
 
 def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
-        arch = subprocess.run(["git", "archive", V1, "fencesweep"], cwd=ROOT, capture_output=True, check=True)
-        subprocess.run(["tar", "-x", "-C", tmp], input=arch.stdout, check=True)
-        old = run(Path(tmp))
+        old = run(export(V1, Path(tmp) / V1))
     new = run(ROOT)
     lines = ["# Kernel time per cycle: v1 (RK4, " + V1 + ") against v2 (this tree)", "",
              "Regenerate: `python benchmarks/kernel_v1_v2.py`. CPU time of the compiled kernel, warm, "

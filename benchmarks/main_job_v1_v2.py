@@ -26,6 +26,7 @@ SPEC = ROOT / "sweeps" / "b2k2.yaml"
 
 
 def export(rev: str, where: Path) -> Path:
+    """The package `fencesweep` of revision `rev`, exported from git into the new folder `where`."""
     where.mkdir(parents=True)
     arch = subprocess.run(["git", "archive", rev, "fencesweep"], cwd=ROOT, capture_output=True, check=True)
     subprocess.run(["tar", "-x", "-C", str(where)], input=arch.stdout, check=True)

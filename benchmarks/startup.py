@@ -24,6 +24,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from main_job_v1_v2 import export  # a revision's package, exported from git
+
 ROOT = Path(__file__).resolve().parents[1]
 FIRST_CYCLE = "from fencesweep import api; api.simulate()"
 PROBES = {"python alone": ["-c", "pass"], "first cycle": ["-c", FIRST_CYCLE],
@@ -43,9 +45,7 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=7)
     a = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
-        arch = subprocess.run(["git", "archive", a.before, "fencesweep"], cwd=ROOT, capture_output=True, check=True)
-        subprocess.run(["tar", "-x", "-C", tmp], input=arch.stdout, check=True)
-        trees = {a.before: Path(tmp), "this tree": ROOT}
+        trees = {a.before: export(a.before, Path(tmp) / a.before), "this tree": ROOT}
         for tree in trees.values():
             wall(tree, ["-c", FIRST_CYCLE])  # compile into (or check) this tree's cache
         times = {(name, probe): [] for name in trees for probe in PROBES}
