@@ -13,6 +13,7 @@ from __future__ import annotations
 import difflib
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Any
 
 SCENES = ("cycle", "impact", "freefall", "stream")
@@ -130,9 +131,12 @@ SCENE_USES: dict[str, frozenset] = {
 LOAD_NAMES = ("L", "A", "m1", "dP", "R_s", "phi0")
 
 
+_DEFAULTS = {p.name: p.default for p in TABLE}  # immutable values: a shallow copy is a new set
+
+
 def defaults() -> dict[str, Any]:
     """Every parameter at its MODEL.md §12 default (derived ones as None)."""
-    return {p.name: p.default for p in TABLE}
+    return dict(_DEFAULTS)
 
 
 def _unknown(name: str, what: str = "parameter") -> ParameterError:
@@ -355,18 +359,26 @@ def initial_centroid(L: float, A: float, phi0: float, R_s: float, dP: float) -> 
 
 def _check_start(vals: dict[str, Any]) -> None:
     """MODEL.md §1: every corner within 0 <= y <= P_max and the load not past the fence."""
-    if vals["R_s"] >= vals["l"]:
-        raise ParameterError(
-            f"R_s = {vals['R_s']!r} is not allowed: the load would start past the fence; R_s must be < l = {vals['l']!r}"
-        )
-    xc, yc = initial_centroid(vals["L"], vals["A"], vals["phi0"], vals["R_s"], vals["dP"])
-    top = max(yc + y for _, y in load_corners(vals["L"], vals["A"], vals["phi0"]))
-    if top > vals["P_max"] * (1 + 1e-12):
-        raise ParameterError(
-            f"dP = {vals['dP']!r} is not allowed with L = {vals['L']!r}, A = {vals['A']!r}, phi0 = {vals['phi0']!r}: "
-            f"the load's far corner would be at y = {top:.6g} > P_max = {vals['P_max']!r}; "
-            f"dP must be <= {vals['dP'] + vals['P_max'] - top:.6g}"
-        )
+    problem = _start_problem(*(vals[n] for n in _START_NAMES))
+    if problem:
+        raise ParameterError(problem)
+
+
+_START_NAMES = ("R_s", "l", "L", "A", "phi0", "dP", "P_max")
+
+
+@lru_cache(maxsize=4096)  # a sweep repeats the load's placing in most of its scenes
+def _start_problem(R_s: float, l: float, L: float, A: float, phi0: float, dP: float, P_max: float) -> str | None:
+    """Why the load cannot start there (_check_start's message), or None."""
+    if R_s >= l:
+        return f"R_s = {R_s!r} is not allowed: the load would start past the fence; R_s must be < l = {l!r}"
+    xc, yc = initial_centroid(L, A, phi0, R_s, dP)
+    top = max(yc + y for _, y in load_corners(L, A, phi0))
+    if top > P_max * (1 + 1e-12):
+        return (f"dP = {dP!r} is not allowed with L = {L!r}, A = {A!r}, phi0 = {phi0!r}: "
+                f"the load's far corner would be at y = {top:.6g} > P_max = {P_max!r}; "
+                f"dP must be <= {dP + P_max - top:.6g}")
+    return None
 
 
 def model_key(vals: dict[str, Any]) -> tuple:
@@ -379,28 +391,34 @@ def model_key(vals: dict[str, Any]) -> tuple:
     control scales the energy integrals by the fence's kinetic energy); B2, K2 under
     `drive = free`; k_lin under the Hertz law; coupler_ratio under the harmonic profile.
     """
-    scene = vals["scene"]
+    names = _used_names(vals["scene"], vals["drive"], vals["contact_law"], vals["profile"], vals["integrator"])
+    key = (vals["scene"],) + tuple((n, vals[n]) for n in names)
+    return key + (("loads", vals["loads"]),) if vals.get("loads") is not None else key
+
+
+@lru_cache(maxsize=None)
+def _used_names(scene: str, drive: str, contact_law: str, profile: str, integrator: str) -> tuple:
+    """The names of model_key's values, in the order of NAMES, for one variant."""
     used = set(SCENE_USES[scene])
-    if scene in ("cycle", "stream") and vals["drive"] == "rigid":
+    if scene in ("cycle", "stream") and drive == "rigid":
         used -= {"B2", "K2"}
-    if scene in ("cycle", "impact") and vals["drive"] == "free":
+    if scene in ("cycle", "impact") and drive == "free":
         used -= {"B2", "K2"}
-    if scene == "impact" and vals["drive"] == "rigid":
+    if scene == "impact" and drive == "rigid":
         used -= {"B2", "K2", "m2", "I2", "l"}
-    if vals["contact_law"] == "hertz":
+    if contact_law == "hertz":
         used -= {"k_lin"}
-    if vals["profile"] == "harmonic":
+    if profile == "harmonic":
         used -= {"coupler_ratio"}
     if "m2" in used and "I2" in used:
         used -= {"m2"}  # only I2 = m2 l^2/3 (or its override) enters the dynamics
     used.add("step_factor")
     if scene in ("cycle", "stream"):
         used.add("integrator")
-        if vals["integrator"] == "rk4":
+        if integrator == "rk4":
             used.add("dt")
         else:
             used.discard("dt")
     else:
         used -= {"integrator", "dt"}
-    key = (scene,) + tuple((n, vals[n]) for n in NAMES if n in used)
-    return key + (("loads", vals["loads"]),) if vals.get("loads") is not None else key
+    return tuple(n for n in NAMES if n in used)
