@@ -50,7 +50,10 @@ IW_RIDE = 16
 N_IW = 17
 FM_KELVIN, FM_KINEMATIC, FM_FREE = 0, 1, 2
 # aux outputs of the right-hand side
-AX_NF, AX_NR, AX_TAU, AX_DMAX, AX_FX, AX_FY, AX_TQ, AX_PDISS, AX_PFRIC, N_AUX = 0, 1, 2, 3, 4, 5, 6, 7, 8, 9
+AX_NF, AX_NR, AX_TAU, AX_DMAX, AX_FX, AX_FY, AX_TQ, AX_PDISS, AX_PFRIC = 0, 1, 2, 3, 4, 5, 6, 7, 8
+# ... and the frame the contacts were evaluated in (frame_at's values; AX_FRAME 1 when set),
+# which classify reuses at the end of a step instead of computing it again
+AX_CA, AX_SA, AX_DAL, AX_CPHI, AX_SPHI, AX_FRAME, N_AUX = 9, 10, 11, 12, 13, 14, 15
 # tracked maxima (MODEL.md §11)
 Q_NF, Q_NR, Q_DEFL, Q_ALPHA, N_Q = 0, 1, 2, 3, 4
 # trajectory columns
@@ -98,6 +101,12 @@ def contact_sum(y, p, iw, ca, sa, dal, aux):
     kc, cd, law, mu2, eps = p[Lp.KC], p[Lp.CD], p[Lp.LAW], p[Lp.MU2], p[Lp.EPSV]
     cphi = math.cos(y[2])
     sphi = math.sin(y[2])
+    aux[AX_CA] = ca
+    aux[AX_SA] = sa
+    aux[AX_DAL] = dal
+    aux[AX_CPHI] = cphi
+    aux[AX_SPHI] = sphi
+    aux[AX_FRAME] = 1.0
     hl = 0.5 * p[Lp.LL]
     hw = 0.5 * p[Lp.AA]
     for j in range(4):
@@ -155,7 +164,7 @@ def rhs(t, y, p, iw, dy, aux):
     Fence (MODEL.md §3): I2 alpha'' = B2 (alpha_w' - alpha') + K2 (alpha_w - alpha) + tau."""
     mode = iw[IW_MODE]
     al, dal, aw, daw = fence_state(t, y, p, mode)
-    for i in range(N_AUX):
+    for i in range(AX_FRAME + 1):
         aux[i] = 0.0
     tau = 0.0
     if iw[IW_LOAD] != 0:
@@ -242,6 +251,22 @@ def classify(t, y, p, iw, codes, gaps, rates, tags):
             tags[k] = iw[k] if k < RAIL0 else 0
         return 0
     ca, sa, dal, cphi, sphi = frame_at(t, y, p, iw)
+    return classify_in(y, p, iw, codes, gaps, rates, tags, ca, sa, dal, cphi, sphi)
+
+
+@kernel()
+def classify_after_rhs(t, y, p, iw, codes, gaps, rates, tags, aux):
+    """classify at (t, y) where aux is from rhs at that point: its frame, when rhs evaluated
+    the contacts there (AX_FRAME), saves drive_angle and four sines and cosines a step."""
+    if iw[IW_LOAD] == 0 or aux[AX_FRAME] == 0.0:
+        return classify(t, y, p, iw, codes, gaps, rates, tags)
+    return classify_in(y, p, iw, codes, gaps, rates, tags, aux[AX_CA], aux[AX_SA], aux[AX_DAL], aux[AX_CPHI],
+                       aux[AX_SPHI])
+
+
+@kernel(inline="always")
+def classify_in(y, p, iw, codes, gaps, rates, tags, ca, sa, dal, cphi, sphi):
+    """classify's loop over the slots, in the frame (ca, sa, dal, cphi, sphi) of frame_at."""
     edge = 0
     for k in range(N_SLOTS):
         c, e, g, r = slot_eval(k, y, p, iw, ca, sa, dal, cphi, sphi)
@@ -511,11 +536,12 @@ def track_maxima(t, h, theta_end, y0, y1, K, Q, qok, p, iw, tmp, aux, dy, q0, q1
                     rising[k] = 1.0 if qa[k] > q0[k] else 0.0
         I.dense_eval(y0, Q, theta_end - d, tmp, N_CTRL)
         quantities(t + (theta_end - d) * h, tmp, p, iw, aux, dy, qb, True)
-    sd, sa = fence_slopes(t, y0, p, iw)  # the fence's quantities: by their derivatives
-    if rising[Q_DEFL] == UNJUDGED:
-        rising[Q_DEFL] = 1.0 if sd > 0.0 else 0.0
-    if rising[Q_ALPHA] == UNJUDGED:
-        rising[Q_ALPHA] = 1.0 if sa > 0.0 else 0.0
+    if rising[Q_DEFL] == UNJUDGED or rising[Q_ALPHA] == UNJUDGED:  # the fence's quantities: by
+        sd, sa = fence_slopes(t, y0, p, iw)  # their derivatives
+        if rising[Q_DEFL] == UNJUDGED:
+            rising[Q_DEFL] = 1.0 if sd > 0.0 else 0.0
+        if rising[Q_ALPHA] == UNJUDGED:
+            rising[Q_ALPHA] = 1.0 if sa > 0.0 else 0.0
     sd, sa = fence_slopes(t + theta_end * h, y1, p, iw)
     qb[Q_DEFL] = q1[Q_DEFL] - sd  # stand-ins for samples just before the end: only the sign of
     qb[Q_ALPHA] = q1[Q_ALPHA] - sa  # their difference from q1 is read
@@ -788,7 +814,7 @@ def run(p, y, y1, tmp, dy, K, Q, qok, aux, auxs, iw, codes1, tags1, g0, r0, g1, 
         acc[A_STEPS] += 1.0
         acc[A_ERR] += err * err  # finish: error_estimate
         qok[0] = 0  # the step's dense output is formed when first needed (ensure_dense)
-        edge1 = classify(t + h, y1, p, iw, codes1, g1, r1, tags1)
+        edge1 = classify_after_rhs(t + h, y1, p, iw, codes1, g1, r1, tags1, aux)  # aux: of f(t + h, y1)
         theta, kind = find_event(t, h, y, y1, K, Q, qok, p, iw, tmp, g0, r0, g1, r1, codes1, tags1,
                                  acc[A_EXITED] != 0.0)
         if kind == 0:
@@ -815,10 +841,12 @@ def run(p, y, y1, tmp, dy, K, Q, qok, aux, auxs, iw, codes1, tags1, g0, r0, g1, 
                 h_next = min(h_next, NU.ONSET_STEP * pulse_time(p[Lp.LAW], p[Lp.M1], p[Lp.KC], atol[3] / tol))
             classify(t1, y1, p, iw, codes1, g1, r1, tags1)
             rhs(t1, y1, p, iw, K[0], aux)  # f(t1, y1) in the new mode
+            quantities_from_aux(t1, y1, p, iw, aux, qv[0])
         else:
             for i in range(N_STATE):
                 K[0, i] = K[6, i]  # first same as last
-        quantities_from_aux(t1, y1, p, iw, aux, qv[0])
+            for k in range(N_Q):
+                qv[0, k] = qv[1, k]  # the same point, the same right-hand side
         for k in range(N_Q):
             acc[A_QMAX + k] = max(acc[A_QMAX + k], qv[0, k])
         acc[A_DMAX] = max(acc[A_DMAX], aux[AX_DMAX])
