@@ -7,8 +7,8 @@ argument); this module supplies
   * `dense_coeffs` / `dense_eval`: the step's continuous extension
     y(t0 + theta h) = y0 + Q0 theta + Q1 theta^2 + Q2 theta^3 + Q3 theta^4;
   * `error_norm` and `next_step`: the standard step-size controller;
-  * `bisect` and `golden_max`: an event locator (a predicate on the dense output) and a
-    peak finder (a quantity maximised on the dense output).
+  * `bisect` and `peak_max`: an event locator (a predicate on the dense output) and a
+    peak finder (a quantity maximised on the dense output, Brent's search).
 
 Methods (numerics.py says which is the default and why):
   METHOD_DOPRI5  Dormand-Prince 5(4), FSAL, local extrapolation (Dormand & Prince 1980;
@@ -166,33 +166,83 @@ def bisect(pred, ctx, lo, hi, tol):
     return lo, hi
 
 
-GOLDEN = 0.6180339887498949
+#: (3 - sqrt 5) / 2: the golden-section fraction of Brent's search
+CGOLD = 0.3819660112501051
 
 
 @kernel(inline="always")
-def golden_max(q, ctx, lo, hi, tol):
-    """Maximum of a unimodal q(ctx, theta) on [lo, hi] by golden-section search (Kiefer 1953);
-    returns (theta, q) of the best point seen."""
-    x1 = hi - GOLDEN * (hi - lo)
-    x2 = lo + GOLDEN * (hi - lo)
-    q1 = q(ctx, x1)
-    q2 = q(ctx, x2)
-    while hi - lo > tol:
-        if q1 > q2:
-            hi = x2
-            x2 = x1
-            q2 = q1
-            x1 = hi - GOLDEN * (hi - lo)
-            q1 = q(ctx, x1)
+def peak_max(q, ctx, lo, hi, tol):
+    """Maximum of a unimodal q(ctx, theta) on [lo, hi] to within tol in theta, by Brent's
+    search (Brent 1973, "Algorithms for Minimization without Derivatives", ch. 5, procedure
+    localmin, applied to -q): successive parabolic interpolation through the three best
+    points, falling back to a golden-section step whenever the parabola's step is not
+    acceptable, so it never takes many more evaluations than golden-section search and, on
+    a smooth peak, converges superlinearly (~10 evaluations to 1e-6 of the step against
+    ~30). Returns (theta, q) of the best point seen."""
+    a = lo
+    b = hi
+    x = a + CGOLD * (b - a)  # the best point; w the second best, v the previous w
+    w = x
+    v = x
+    fx = -q(ctx, x)
+    fw = fx
+    fv = fx
+    d = 0.0  # the last step, and e the one before it
+    e = 0.0
+    tol1 = 0.5 * tol  # x ends within 2 tol1 = tol of both ends of the final bracket
+    while abs(x - 0.5 * (a + b)) > 2.0 * tol1 - 0.5 * (b - a):
+        d, e = _brent_step(a, b, x, w, v, fx, fw, fv, d, e, tol1)
+        if abs(d) >= tol1:
+            u = x + d
         else:
-            lo = x1
-            x1 = x2
-            q1 = q2
-            x2 = lo + GOLDEN * (hi - lo)
-            q2 = q(ctx, x2)
-    if q1 > q2:
-        return x1, q1
-    return x2, q2
+            u = x + tol1 if d > 0.0 else x - tol1
+        fu = -q(ctx, u)
+        a, b, x, w, v, fx, fw, fv = _brent_keep(a, b, x, w, v, fx, fw, fv, u, fu)
+    return x, -fx
+
+
+@kernel(inline="always")
+def _brent_step(a, b, x, w, v, fx, fw, fv, d, e, tol1):
+    """peak_max's next step from x and the step before it (the new (d, e)): the vertex of the
+    parabola through (v, fv), (w, fw), (x, fx) when it lies inside [a, b] and moves less than
+    half the step before last, else a golden-section step into the larger part of [a, b]."""
+    m = 0.5 * (a + b)
+    if abs(e) > tol1:
+        r = (x - w) * (fx - fv)
+        qq = (x - v) * (fx - fw)
+        pp = (x - v) * qq - (x - w) * r
+        qq = 2.0 * (qq - r)
+        if qq > 0.0:
+            pp = -pp
+        else:
+            qq = -qq
+        if abs(pp) < abs(0.5 * qq * e) and pp > qq * (a - x) and pp < qq * (b - x):
+            step = pp / qq
+            if x + step - a < 2.0 * tol1 or b - (x + step) < 2.0 * tol1:
+                step = tol1 if x < m else -tol1
+            return step, d
+    e = (b - x) if x < m else (a - x)
+    return CGOLD * e, e
+
+
+@kernel(inline="always")
+def _brent_keep(a, b, x, w, v, fx, fw, fv, u, fu):
+    """peak_max's bracket [a, b] and its three best points after evaluating u (fu = -q)."""
+    if fu <= fx:
+        if u < x:
+            b = x
+        else:
+            a = x
+        return a, b, u, x, w, fu, fx, fw
+    if u < x:
+        a = u
+    else:
+        b = u
+    if fu <= fw or w == x:
+        return a, b, x, u, w, fx, fu, fw
+    if fu <= fv or v == x or v == w:
+        return a, b, x, w, u, fx, fw, fu
+    return a, b, x, w, v, fx, fw, fv
 
 
 @kernel(inline="always")

@@ -68,8 +68,8 @@ ONSET_STEP = 1e-6
 #: accuracy at the default tolerance: no result can see it.
 CONTACT_HYSTERESIS = 1e-10
 
-#: Peaks of the tracked quantities (forces, deflection, alpha) are refined by golden-section
-#: search on the dense output of the two steps around a local maximum of the samples, to
+#: Peaks of the tracked quantities (forces, deflection, alpha) are refined by Brent's search
+#: (integrate.peak_max) on the dense output of the two steps around a local maximum of the samples, to
 #: this width in units of the window (value error ~ (width)^2: far below 1e-6 relative), and
 #: only for local maxima within PEAK_CANDIDATE of the running maximum.
 PEAK_TOL = 1e-6

@@ -321,7 +321,7 @@ def _mask_changed(ctx, theta):
 
 @kernel()
 def _neg_gap(ctx, theta):
-    """-gap of one slot at theta (golden_max of it is the gap's minimum)."""
+    """-gap of one slot at theta (peak_max of it is the gap's minimum)."""
     t0, h, y0, Q, p, iw, tmp, k = ctx
     I.dense_eval(y0, Q, theta, tmp, N_CTRL)
     ca, sa, dal, cphi, sphi = frame_at(t0 + theta * h, tmp, p, iw)
@@ -373,7 +373,7 @@ def graze_theta(t, h, y0, Q, p, iw, tmp, g0, r0, g1, r1, codes1):
     for k in range(N_SLOTS):
         if not graze_candidate(k, iw, codes1, g0, r0, g1, r1):
             continue
-        th, ng = I.golden_max(_neg_gap, (t, h, y0, Q, p, iw, tmp, k), 0.0, 1.0, NU.PEAK_TOL)
+        th, ng = I.peak_max(_neg_gap, (t, h, y0, Q, p, iw, tmp, k), 0.0, 1.0, NU.PEAK_TOL)
         if ng > 0.0 and th < best and _mask_changed((t, h, y0, Q, p, iw, tmp, 1 << k), th):
             best = th
             slot = k
@@ -455,7 +455,7 @@ def all_finite(y):
 
 @kernel()
 def _quantity_at(ctx, theta):
-    """One tracked quantity on the dense output (for golden_max)."""
+    """One tracked quantity on the dense output (for peak_max)."""
     t0, h, y0, Q, p, iw, tmp, aux, dy, q, kind = ctx
     I.dense_eval(y0, Q, theta, tmp, N_CTRL)
     quantities(t0 + theta * h, tmp, p, iw, aux, dy, q, kind < Q_DEFL)
@@ -511,7 +511,7 @@ def track_maxima(t, h, theta_end, y0, y1, K, Q, qok, p, iw, tmp, aux, dy, q0, q1
                  Ks, ys, atol):
     """Running maxima of the tracked quantities over the step [t, t + theta_end h]: the end
     samples, and an interior maximum (the quantity rising at the start and falling at the
-    end, judged on the dense output) located by golden-section search (MODEL.md §9).
+    end, judged on the dense output) located by Brent's search (integrate.peak_max, MODEL.md §9).
     rising[k] says whether quantity k rose at the start (1, 0; UNJUDGED when the step before
     was far from its maximum, or after an event: rising[N_Q] = 1); on return it says so for
     the step's end. The fence's quantities are judged by their derivatives at the ends
@@ -553,7 +553,7 @@ def track_maxima(t, h, theta_end, y0, y1, K, Q, qok, p, iw, tmp, aux, dy, q0, q1
             continue
         if rising[k] == 1.0 and qb[k] > q1[k] and max(q1[k], q0[k]) >= NU.PEAK_CANDIDATE * m:
             ensure_dense(method, K, h, y0, y1, Q, qok)
-            th, qm = I.golden_max(_quantity_at, (t, h, y0, Q, p, iw, tmp, aux, dy, qs, k),
+            th, qm = I.peak_max(_quantity_at, (t, h, y0, Q, p, iw, tmp, aux, dy, qs, k),
                                   0.0, theta_end, NU.PEAK_TOL)
             m = max(m, peak_value(t, h, th, y0, p, iw, tmp, aux, dy, qs, Ks, ys, atol, k))
             ths[k] = th

@@ -57,7 +57,7 @@ def impact_rhs(t, y, p, iw, dy, aux):
 
 @kernel()
 def _force_at(ctx, theta):
-    """The Kelvin force on the dense output (golden_max, and bisect of its return to 0)."""
+    """The Kelvin force on the dense output (peak_max, and bisect of its return to 0)."""
     y0, Q, p, iw, tmp, dy, aux = ctx
     I.dense_eval(y0, Q, theta, tmp, N_STATE)
     impact_rhs(0.0, tmp, p, iw, dy, aux)
@@ -111,7 +111,7 @@ def impact_kernel(p, rigid, free, w, out):
             theta = I.bisect(_released, ctx, 0.0, 1.0, NU.EVENT_TOL * tp / h)[1]
         d = 1e-3 * theta
         if _force_at(ctx, d) > _force_at(ctx, 0.0) and _force_at(ctx, theta - d) > _force_at(ctx, theta):
-            peak = max(peak, I.golden_max(_force_at, ctx, 0.0, theta, NU.PEAK_TOL)[1])
+            peak = max(peak, I.peak_max(_force_at, ctx, 0.0, theta, NU.PEAK_TOL)[1])
         peak = max(peak, _force_at(ctx, theta))
         I.dense_eval(y, Q, theta, y1, N_STATE)
         D1, Dd1 = penetration(y1, p, rigid)
