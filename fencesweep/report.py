@@ -1097,7 +1097,8 @@ def _envelope_pointer(res: Path) -> list[str]:
     dv = rec.get("design_variables", {})
     if rec.get("status") != "feasible" or "B2" not in dv or "K2" not in dv:
         return []
-    return [f"\"Recommended\" in this section and in `recommended.png` is the choice of the two named loads' maps. "
+    return [f"\"Recommended\" in this section (the \"two-case pick\" of the figures) is the choice of the two named "
+            f"loads' maps. "
             f"Over a whole load envelope (section 7) the element to build is B2 = {dv['B2']:g}, K2 = {dv['K2']:g} "
             "([`design/recommended.json`](design/recommended.json)).", ""]
 
@@ -1198,10 +1199,10 @@ def _figures_section(I: ReportInputs) -> list[str]:
         ("cycle_small_far.png", "one cycle in frames: load, fence, drive lever, belt, contact forces (small_far, "
          f"flexible {el})"),
         ("cycle_long_near.png", "the same for long_near"),
-        ("recommended.png", f"deflection and fence force over a cycle: the paper's {el}, the recommended and the "
+        ("recommended.png", f"deflection and fence force over a cycle: the paper's {el}, the two-case pick and the "
          "well-damped element, both cases"),
         ("stream_deflection.png", f"deflection over {STREAM_FIGURE_CYCLES} cycles back to back (scene stream) at "
-         f"T = t_c, t_c = {' and '.join(f'{t:g}' for t in STREAM_FIGURE_TC)} s: the paper's {el}, the recommended and "
+         f"T = t_c, t_c = {' and '.join(f'{t:g}' for t in STREAM_FIGURE_TC)} s: the paper's {el}, the two-case pick and "
          "the well-damped element (section 6)"),
     ]
     return ["## 3. Figures (`results/figures/`)", ""] + [f"* [`{f}`](figures/{f}): {t}" for f, t in figs] + [""]
