@@ -164,7 +164,7 @@ def rhs(t, y, p, iw, dy, aux):
     Fence (MODEL.md §3): I2 alpha'' = B2 (alpha_w' - alpha') + K2 (alpha_w - alpha) + tau."""
     mode = iw[IW_MODE]
     al, dal, aw, daw = fence_state(t, y, p, mode)
-    for i in range(AX_FRAME + 1):
+    for i in range(N_AUX):
         aux[i] = 0.0
     tau = 0.0
     if iw[IW_LOAD] != 0:
