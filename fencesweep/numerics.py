@@ -11,9 +11,9 @@ from __future__ import annotations
 INTEGRATORS = ("dopri5", "rk4")
 
 #: Local error tolerance at step_factor = 1. Every step keeps the difference of the 5th- and
-#: 4th-order solutions below TOL relative to the state (rtol) and to the scene's scales (atol:
-#: TOL x fence length for positions, x 1 rad for angles, x the fastest drive-or-belt speed
-#: for velocities). Chosen as the loosest power of ten at which the widened validation set
+#: 4th-order solutions below TOL relative to the state (rtol) and to the scene's scales (atol,
+#: scenes/cycle.py error_scales: each component's allowed error moves a point of the scene by
+#: TOL x the fence length, or TOL x the fastest drive-or-belt speed for velocities). Chosen as the loosest power of ten at which the widened validation set
 #: (benchmarks/validation_scenes.yaml, tests/test_validation.py) stays within 1e-4 of the
 #: reference in peak_force, deflection_max and t_exit: measured at 1e-7, 1e-6 and 1e-5, the
 #: scenes missed are the same one at 1e-7 and 1e-6 (graze_tip_clip, see KNOWN_MISSES there)

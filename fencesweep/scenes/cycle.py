@@ -722,7 +722,7 @@ def at_t_c(t, y, p, iw, acc):
 
 @kernel()
 def start(p, y, iw, acc, atol):
-    """Initial state, modes, accumulators and the error scales of the run."""
+    """Initial state, modes, accumulators and the error scales (error_scales) of the run."""
     initial_state(p, y)
     for j in range(4):
         iw[j] = 1
@@ -736,13 +736,29 @@ def start(p, y, iw, acc, atol):
               A_E_DAMPER):
         acc[i] = math.nan
     acc[A_OUTCOME] = Rs.TIMEOUT
-    # error scales (numerics.TOL): lengths on the fence length, angles on 1 rad, speeds on the
-    # fastest belt-or-fence speed, rates on that over the fence length
+    error_scales(p, atol)
+
+
+@kernel()
+def error_scales(p, atol):
+    """atol: the absolute tolerance of each state component, TOL (p[TOL]) times its scale.
+    The scales are chosen so that every component's allowed error moves a point of the scene by
+    about the same distance, TOL l (l the fence length) or TOL x the fastest speed:
+      x, y: l;  phi: l / r;  x', y': speed;  omega: speed / r;  alpha: 1 rad (l at the tip);
+      alpha': speed / l;
+    with speed the fastest belt-or-fence speed v + l max|alpha_w'| and r the load's half-diagonal
+    (its corners move by r dphi: an angle error of TOL l / r moves them by TOL l, as the fence's
+    TOL moves its tip by TOL l). The energies (components N_CTRL..) are on the scale of the
+    fence's kinetic energy at that speed. (phi and omega were on 1 rad and speed / l before,
+    r / l times tighter than the corners need; on the b2k2 sample that cost 4% more steps,
+    benchmarks/kernel_v1_v2.py.)"""
     tol = p[Lp.TOL]
     speed = p[Lp.V] + p[Lp.FL] * p[Lp.DAW_MAX]
-    for i, sc in enumerate((p[Lp.FL], p[Lp.FL], 1.0, speed, speed, speed / p[Lp.FL], 1.0, speed / p[Lp.FL])):
+    r = 0.5 * math.sqrt(p[Lp.LL] ** 2 + p[Lp.AA] ** 2)
+    fl = p[Lp.FL]
+    for i, sc in enumerate((fl, fl, fl / r, speed, speed, speed / r, 1.0, speed / fl)):
         atol[i] = tol * sc
-    e_scale = p[Lp.I2] * (speed / p[Lp.FL]) ** 2  # energies: the fence's kinetic energy scale
+    e_scale = p[Lp.I2] * (speed / fl) ** 2
     for i in range(N_CTRL, N_STATE):
         atol[i] = tol * e_scale
 
