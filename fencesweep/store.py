@@ -80,10 +80,66 @@ def _json_default(x):
     raise TypeError(f"not JSON serialisable: {type(x).__name__}")
 
 
-def preload() -> None:
-    """Do pyarrow's lazy set-up now: its first array imports pandas (0.2-0.4 s). Called before
-    forking workers, which then inherit it instead of each paying for it."""
-    pa.array([0.0])
+#: Arrow types built from, and read into, NumPy buffers directly (arrow_array, numpy_column)
+_NUMPY_OF = {pa.float64(): np.float64, pa.int64(): np.int64}
+
+
+def arrow_array(values, typ: pa.DataType) -> pa.Array:
+    """`values` (a sequence or NumPy array) as an Arrow array of type `typ`, made from NumPy
+    buffers (pa.Array.from_buffers) for float64 (None a null), int64, bool and string values.
+
+    pa.array would do the same, but its first call in a process imports pandas (0.2 s,
+    measured), which a sweep's workers and its planning never need: with this, the main job's
+    processes never import it. Other types and other values go through pa.array."""
+    if isinstance(values, (pa.Array, pa.ChunkedArray)):
+        return values if values.type == typ else values.cast(typ)
+    n = len(values)
+    if typ in _NUMPY_OF or typ == pa.bool_():
+        arr = np.asarray(values)
+        if typ == pa.bool_() and arr.dtype.kind == "b":
+            bits = np.packbits(arr, bitorder="little")
+            return pa.Array.from_buffers(typ, n, [None, pa.py_buffer(bits)])
+        valid = None
+        if arr.dtype == object and typ == pa.float64():  # None is a null (a parameter not set)
+            missing = np.array([v is None for v in values], dtype=bool)
+            if all(isinstance(v, (float, int)) for v, m in zip(values, missing) if not m):
+                arr = np.where(missing, 0.0, arr).astype(np.float64)
+                valid = pa.py_buffer(np.packbits(~missing, bitorder="little")) if missing.any() else None
+        if arr.dtype.kind in ("iu" if typ == pa.int64() else "fiu") and n:
+            data = pa.py_buffer(np.ascontiguousarray(arr, _NUMPY_OF[typ]))
+            return pa.Array.from_buffers(typ, n, [valid, data], null_count=-1 if valid else 0)
+    elif typ == pa.string() and all(isinstance(v, str) for v in values):
+        data = [v.encode() for v in values]
+        offsets = np.zeros(n + 1, np.int32)
+        np.cumsum([len(b) for b in data], out=offsets[1:])
+        return pa.Array.from_buffers(typ, n, [None, pa.py_buffer(offsets), pa.py_buffer(b"".join(data))])
+    return pa.array(values, type=typ)
+
+
+def numpy_column(col) -> np.ndarray:
+    """An Arrow column (Array or ChunkedArray) as a NumPy array (strings as an object array),
+    read from its buffers for the types arrow_array makes (see there: to_numpy's first call
+    imports pandas); other types, and columns with nulls, through to_numpy."""
+    chunks = col.chunks if isinstance(col, pa.ChunkedArray) else [col]
+    parts = [_numpy_chunk(c) for c in chunks]
+    if len(parts) == 1:
+        return parts[0]
+    if not parts:
+        return np.empty(0, _NUMPY_OF.get(col.type, bool if col.type == pa.bool_() else object))
+    return np.concatenate(parts)
+
+
+def _numpy_chunk(arr: pa.Array) -> np.ndarray:
+    n, off = len(arr), arr.offset
+    if n and arr.null_count == 0 and arr.type in _NUMPY_OF:
+        dt = np.dtype(_NUMPY_OF[arr.type])
+        return np.frombuffer(arr.buffers()[1], dt, count=n, offset=off * dt.itemsize)
+    if n and arr.null_count == 0 and arr.type == pa.bool_():
+        bits = np.frombuffer(arr.buffers()[1], np.uint8)
+        return np.unpackbits(bits, count=off + n, bitorder="little")[off:].astype(bool)
+    if arr.null_count == 0 and arr.type == pa.string():
+        return np.array(arr.to_pylist(), dtype=object)
+    return arr.to_numpy(zero_copy_only=False)
 
 
 # ---------------------------------------------------------------------------- schema
@@ -144,13 +200,13 @@ def param_columns() -> list:
 
 def param_table(columns: dict) -> pa.Table:
     """The label, parameter and derived columns of a block of scenes ({name: list}) as a table."""
-    return pa.table({name: pa.array(columns[name], type=typ) for name, typ in param_columns()})
+    return pa.table({name: arrow_array(columns[name], typ) for name, typ in param_columns()})
 
 
 def read_param_table(path: str | Path) -> pa.Table | None:
     """A table written by param_table, as written (None if it is missing or damaged)."""
     try:
-        table = pq.read_table(path)
+        table = pq.ParquetFile(path).read()  # (pq.read_table imports pandas)
     except (OSError, pa.ArrowInvalid):
         return None
     if table.column_names != [name for name, _ in param_columns()]:
@@ -202,7 +258,7 @@ def explode_streams(cols: dict, n_params: int) -> dict:
     out = {}
     for name in names[:n_params]:
         col = cols[name]
-        out[name] = col.take(pa.array(which)) if isinstance(col, (pa.Array, pa.ChunkedArray)) else \
+        out[name] = col.take(arrow_array(which, pa.int64())) if isinstance(col, (pa.Array, pa.ChunkedArray)) else \
             np.asarray(col, dtype=object)[which]
     out["cycle"] = np.concatenate([np.arange(c, dtype=np.int64) for c in counts]) if len(counts) else \
         np.empty(0, np.int64)
@@ -223,10 +279,10 @@ def results_table(scene: str, rows: list, model_ids: Iterable[int] | None = None
             missing = sorted(set(names) - set(row))
             extra = sorted(set(row) - set(names))
             raise ValueError(f"result {k} of scene {scene!r} has missing keys {missing} / extra keys {extra}")
-    arrays = [pa.array([row[n] for row in rows], type=schema.field(n).type) for n in names]
+    arrays = [arrow_array([row[n] for row in rows], schema.field(n).type) for n in names]
     table = pa.Table.from_arrays(arrays, schema=schema)
     if model_ids is not None:
-        table = table.append_column("_model", pa.array(list(model_ids), type=pa.int64()))
+        table = table.append_column("_model", arrow_array(list(model_ids), pa.int64()))
     return table
 
 
@@ -275,14 +331,8 @@ def chunk_complete(path: str | Path, n_rows: int) -> bool:
 
 def read_chunk(path: str | Path) -> dict:
     """A chunk as {column: numpy array} (strings as object arrays), `_model` included."""
-    table = pq.read_table(path)
-    return {name: table.column(name).to_numpy(zero_copy_only=False) for name in table.column_names}
-
-
-def _arrow(values, typ: pa.DataType):
-    if isinstance(values, (pa.Array, pa.ChunkedArray)):
-        return values if values.type == typ else values.cast(typ)
-    return pa.array(values, type=typ)
+    table = pq.ParquetFile(path).read()
+    return {name: numpy_column(table.column(name)) for name in table.column_names}
 
 
 class TableWriter:
@@ -298,7 +348,7 @@ class TableWriter:
 
     def write(self, columns: dict) -> None:
         """One row group: {name: values}, each a sequence, a numpy array or an Arrow array."""
-        arrays = [_arrow(columns[f.name], f.type) for f in self.schema]
+        arrays = [arrow_array(columns[f.name], f.type) for f in self.schema]
         self._writer.write_table(pa.Table.from_arrays(arrays, schema=self.schema))
         self.n_rows += len(arrays[0]) if arrays else 0
 

@@ -351,7 +351,6 @@ def _start_pool(jobs: int, shared: tuple | None, method: str):
     if method == "fork":
         from concurrent.futures import ProcessPoolExecutor
 
-        store.preload()  # inherited by the workers
         return ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("fork"),
                                    initializer=_init_worker, initargs=args)
     from joblib.externals.loky import ProcessPoolExecutor
