@@ -94,18 +94,13 @@ def arrow_array(values, typ: pa.DataType) -> pa.Array:
     if isinstance(values, (pa.Array, pa.ChunkedArray)):
         return values if values.type == typ else values.cast(typ)
     n = len(values)
-    if typ in _NUMPY_OF or typ == pa.bool_():
+    if typ == pa.bool_():
         arr = np.asarray(values)
-        if typ == pa.bool_() and arr.dtype.kind == "b":
-            bits = np.packbits(arr, bitorder="little")
-            return pa.Array.from_buffers(typ, n, [None, pa.py_buffer(bits)])
-        valid = None
-        if arr.dtype == object and typ == pa.float64():  # None is a null (a parameter not set)
-            missing = np.array([v is None for v in values], dtype=bool)
-            if all(isinstance(v, (float, int)) for v, m in zip(values, missing) if not m):
-                arr = np.where(missing, 0.0, arr).astype(np.float64)
-                valid = pa.py_buffer(np.packbits(~missing, bitorder="little")) if missing.any() else None
-        if arr.dtype.kind in ("iu" if typ == pa.int64() else "fiu") and n:
+        if arr.dtype.kind == "b":
+            return pa.Array.from_buffers(typ, n, [None, pa.py_buffer(np.packbits(arr, bitorder="little"))])
+    elif typ in _NUMPY_OF and n:
+        arr, valid = _with_nulls(values) if typ == pa.float64() else (np.asarray(values), None)
+        if arr.dtype.kind in ("iu" if typ == pa.int64() else "fiu"):
             data = pa.py_buffer(np.ascontiguousarray(arr, _NUMPY_OF[typ]))
             return pa.Array.from_buffers(typ, n, [valid, data], null_count=-1 if valid else 0)
     elif typ == pa.string() and all(isinstance(v, str) for v in values):
@@ -114,6 +109,20 @@ def arrow_array(values, typ: pa.DataType) -> pa.Array:
         np.cumsum([len(b) for b in data], out=offsets[1:])
         return pa.Array.from_buffers(typ, n, [None, pa.py_buffer(offsets), pa.py_buffer(b"".join(data))])
     return pa.array(values, type=typ)
+
+
+def _with_nulls(values) -> tuple:
+    """(float values as a NumPy array, Arrow validity bitmap or None): None is a null (a
+    parameter a scene leaves unset); values that are not all numbers come back as an object
+    array, for pa.array to take."""
+    arr = np.asarray(values)
+    if arr.dtype != object:
+        return arr, None
+    missing = np.array([v is None for v in values], dtype=bool)
+    if not all(isinstance(v, (float, int)) for v, m in zip(values, missing) if not m):
+        return arr, None
+    valid = pa.py_buffer(np.packbits(~missing, bitorder="little")) if missing.any() else None
+    return np.where(missing, 0.0, arr).astype(np.float64), valid
 
 
 def numpy_column(col) -> np.ndarray:

@@ -609,6 +609,7 @@ ARROW_CASES = [
     ([1.0, None, 3.0, None, 5.0, 6.0, 7.0, 8.0, 9.0], "float64"), ([None] * 3, "float64"), ([3, -4, 2**40], "int64"),
     ([True, False, True, True, False, False, True, True, True], "bool"), (["ok", "failed: x é", ""], "string"),
     ([], "float64"), ([], "string"), ([], "bool"), ([None, "a"], "string"),
+    (np.array([5, 6]), "int64"), (np.array([True, False]), "bool"),
 ]
 
 
