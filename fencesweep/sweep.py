@@ -28,6 +28,7 @@ table is the same, bit for bit, whatever --jobs or backend.
 from __future__ import annotations
 
 import contextlib
+import gc
 import hashlib
 import io
 import itertools
@@ -373,13 +374,24 @@ def _stop_pool(pool, kill: bool) -> None:
 
 @contextlib.contextmanager
 def _pool(jobs: int, shared: tuple | None, method: str):
+    """A pool of local workers for a with-block. Forked ones share this process's memory
+    pages until one side writes to them, and a garbage collection writes to every object it
+    scans: so the objects made so far are frozen out of collections (gc.freeze) while the
+    pool lives. Measured on the main job with 2 jobs: the parent's kernel load beside the
+    forked planning helper 0.37-0.41 s before, 0.345-0.348 s with the freeze."""
+    if method == "fork":
+        gc.freeze()
     pool = _start_pool(jobs, shared, method)
     try:
         yield pool
     except BaseException:
         _stop_pool(pool, kill=True)
         raise
-    _stop_pool(pool, kill=False)
+    else:
+        _stop_pool(pool, kill=False)
+    finally:
+        if method == "fork":
+            gc.unfreeze()
 
 
 def _completed(pool, calls: Iterable[tuple], ahead: int) -> Iterator:
