@@ -4,6 +4,7 @@ Most tests run against `fake_engine`, a cheap deterministic function of the para
 passed as `simulate=` (pickled by value, so loky workers need not import this file).
 `test_real_engine_*` run the real engine on a few scenes.
 """
+import gc
 import math
 import signal
 import subprocess
@@ -188,6 +189,7 @@ def test_same_table_bit_for_bit_for_1_and_2_jobs(tmp_path):
     assert a.out.read_bytes() == b.out.read_bytes()
     pd.testing.assert_frame_equal(pd.read_parquet(a.out), pd.read_parquet(b.out))
     assert not sweep.work_root(a.out).exists()  # the work directory is removed when done
+    assert gc.get_freeze_count() == 0  # the objects frozen while the forked workers lived are collectable again
 
 
 def test_same_table_from_loky_workers(tmp_path, monkeypatch):
