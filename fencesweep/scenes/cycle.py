@@ -19,7 +19,8 @@ The kernel is scenes/stream.py's (a cycle is a stream of one): it calls `start`,
 the step loop of this file, then `finish`. The loop (`run`): choose the step -> take it (integrate.take_step; rejected when
 its error estimate exceeds the tolerance) -> find the first event inside it on its dense
 output (a contact slot changing its code, a graze between two apart samples, the outcome
-of §9) and end the step there -> book-keep (stages, peaks located inside the step, the
+of §9) and end the step there, its state from the dense output, or, at a release, from steps
+of the method to it (release_state) -> book-keep (stages, peaks located inside the step, the
 trajectory). Between events the right-hand side is smooth: it evaluates only the contacts
 whose slot is not APART, in the mode fixed at the step's start.
 """
@@ -35,8 +36,9 @@ from .. import numerics as NU
 from .. import results as Rs
 from ..contact import belt_friction, pulse_time
 from ..drive import drive_angle
-from .contacts import (APART, N_SLOTS, PUSH, RAIL0, TIP, next_code, corner_fence_force, corner_fence_geometry,
-                       corner_rail_force, tip_edge_choice, tip_edge_force, tip_edge_normal, tip_gap, tip_local)
+from .contacts import (APART, CLIPPED, N_SLOTS, PUSH, RAIL0, TIP, next_code, corner_fence_force,
+                       corner_fence_geometry, corner_rail_force, tip_edge_choice, tip_edge_force, tip_edge_normal,
+                       tip_gap, tip_local)
 from .load import corner_motion, initial_state, outcome_margin
 
 N_STATE = 13
@@ -415,6 +417,102 @@ def find_event(t, h, y0, y1, K, Q, qok, p, iw, tmp, g0, r0, g1, r1, codes1, tags
                     theta = th
                     kind = 2 + oc
     return theta, kind
+
+
+# ---------------------------------------------------------------- releases on the method's flow
+
+@kernel(inline="always")
+def releases(iw, codes):
+    """Are codes releases only: some slots pushing in iw clipped in codes (MODEL.md §4: N
+    returned to 0), every other slot's code as in iw?"""
+    rel = False
+    for k in range(N_SLOTS):
+        if iw[IW_CODE + k] == PUSH and codes[k] == CLIPPED:
+            rel = True
+        elif codes[k] != iw[IW_CODE + k]:
+            return False
+    return rel
+
+
+@kernel(inline="always")
+def any_changed(iw, codes, tags):
+    """Has any slot changed its code, side or edge from iw (an event, find_event's mask)?"""
+    for k in range(N_SLOTS):
+        if slot_changed(k, codes[k], tags[k], iw):
+            return True
+    return False
+
+
+@kernel()
+def step_part(t, h, s, y0, K, p, iw, tmp, aux, Ks, ys, atol, codes, gaps, rates, tags):
+    """ys: the state at t + s h from one step of the method from (t, y0), K[0] = f(t, y0);
+    classified into codes..tags. Returns whether a slot has changed there."""
+    for i in range(N_STATE):
+        Ks[0, i] = K[0, i]
+    I.take_step(int(p[Lp.METHOD]), rhs, t, y0, s * h, p, iw, Ks, tmp, ys, aux, atol, p[Lp.TOL], N_CTRL)
+    classify(t + s * h, ys, p, iw, codes, gaps, rates, tags)
+    return any_changed(iw, codes, tags)
+
+
+@kernel()
+def release_state(t, h, th, y0, K, Q, p, iw, tmp, dy, aux, Ks, ys, atol, codes, gaps, rates, tags):
+    """A release located at th on the dense output Q[:4] of the step [t, t + h], located anew
+    on the method's flow (numerics.RELEASE_TOL says why): [lo, hi] (fractions of h) brackets
+    it on that flow (a step of the method to lo has not released yet, one to hi has; hi = 1 at
+    first, the step's end). Each try steps to s = g + m (hi - g) past the latest located
+    release g; one that reaches it becomes hi, and the release is located again on its dense
+    output Q[4:]; one that falls short becomes lo and g, and the margin m grows. Returns the
+    release, once the step to hi passed it by at most RELEASE_TOL (or, when the tries run
+    out, as located in [lo, hi] on the dense output of the step to hi), the state there in ys."""
+    lo = 0.0
+    hi = 1.0
+    g = th
+    m = 0.0
+    tol = NU.RELEASE_TOL * max(1.0, t) / h
+    for _ in range(NU.RELEASE_TRIES):
+        s = g + m * (hi - g)
+        if step_part(t, h, s, y0, K, p, iw, dy, aux, Ks, ys, atol, codes, gaps, rates, tags):
+            hi = s
+            I.dense_coeffs(int(p[Lp.METHOD]), Ks, s * h, y0, ys, Q[4:], N_STATE)
+            g = located(t, h, lo, hi, y0, Q[4:], p, iw, tmp)
+            if hi - g <= tol:
+                break
+            m = NU.RELEASE_MARGIN
+        else:
+            lo = s
+            g = s
+            m = min(0.5, 4.0 * m) if m > 0.0 else NU.RELEASE_MARGIN
+    Qh = Q[:4] if hi == 1.0 else Q[4:]  # the dense output of the step to hi
+    if g <= lo:
+        g = located(t, h, lo, hi, y0, Qh, p, iw, tmp)
+    I.dense_eval(y0, Qh, g / hi, ys, N_STATE)
+    return g
+
+
+@kernel(inline="always")
+def located(t, h, lo, hi, y0, Q2, p, iw, tmp):
+    """The first slot change in [lo, hi] (fractions of h) on the dense output Q2 of the step
+    [t, t + hi h], just past it (integrate.bisect)."""
+    sh = hi * h
+    return hi * I.bisect(_mask_changed, (t, sh, y0, Q2, p, iw, tmp, (1 << N_SLOTS) - 1), lo / hi, 1.0,
+                         NU.EVENT_TOL * max(1.0, t) / sh)[1]
+
+
+@kernel()
+def event_state(t, h, theta, kind, y0, y1, K, Q, p, iw, tmp, dy, aux, Ks, ys, atol, codes1, g1, r1, tags1):
+    """The state y1 at the event that ends the step [t, t + h] (find_event's theta and kind;
+    codes1.. hold the step's end on entry and the event's on return): on the dense output, or,
+    for releases only (at the event and at the step's end), from release_state. Returns
+    (theta, the tip's edge)."""
+    released = kind == 1 and releases(iw, codes1)
+    I.dense_eval(y0, Q, theta, y1, N_STATE)
+    edge1 = classify(t + theta * h, y1, p, iw, codes1, g1, r1, tags1)
+    if released and releases(iw, codes1):
+        theta = release_state(t, h, theta, y0, K, Q, p, iw, tmp, dy, aux, Ks, ys, atol, codes1, g1, r1, tags1)
+        for i in range(N_STATE):
+            y1[i] = ys[i]
+        edge1 = classify(t + theta * h, y1, p, iw, codes1, g1, r1, tags1)
+    return theta, edge1
 
 
 # ---------------------------------------------------------------- tracked maxima
@@ -836,9 +934,9 @@ def run(p, y, y1, tmp, dy, K, Q, qok, aux, auxs, iw, codes1, tags1, g0, r0, g1, 
         if kind == 0:
             t1 = tc if hits_tc else t + h
         else:
+            theta, edge1 = event_state(t, h, theta, kind, y, y1, K, Q, p, iw, tmp, dy, auxs, Ks, ys, atol,
+                                       codes1, g1, r1, tags1)
             t1 = t + theta * h
-            I.dense_eval(y, Q, theta, y1, N_STATE)
-            edge1 = classify(t1, y1, p, iw, codes1, g1, r1, tags1)
         if kind == 0:
             quantities_from_aux(t1, y1, p, iw, aux, qv[1])  # aux of the FSAL stage f(t1, y1)
         else:

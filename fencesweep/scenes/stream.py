@@ -144,8 +144,8 @@ def stream_kernel(p, loads, period, out, traj, row_starts):
     tmp = np.empty(n)
     dy = np.empty(n)
     K = np.empty((I.N_STAGES, n))
-    Q = np.zeros((4, n))
-    qok = np.zeros(1, np.int64)  # Q holds the current step's dense output (cycle.ensure_dense)
+    Q = np.zeros((8, n))  # Q[:4]: the step's dense output; Q[4:]: a step to a release (cycle.release_state)
+    qok = np.zeros(1, np.int64)  # Q[:4] holds the current step's dense output (cycle.ensure_dense)
     aux = np.zeros(N_AUX)
     auxs = np.zeros(N_AUX)  # the peak search's own: aux keeps f(t1, y1)'s forces
     iw = np.zeros(N_IW, np.int64)
