@@ -435,23 +435,24 @@ def releases(iw, codes):
 
 
 @kernel(inline="always")
-def any_changed(iw, codes, tags):
-    """Has any slot changed its code, side or edge from iw (an event, find_event's mask)?"""
+def changed_mask(iw, codes, tags):
+    """Bit k set when slot k changed its code, side or edge from iw (an event, find_event's mask)."""
+    mask = 0
     for k in range(N_SLOTS):
         if slot_changed(k, codes[k], tags[k], iw):
-            return True
-    return False
+            mask |= 1 << k
+    return mask
 
 
 @kernel()
 def step_part(t, h, s, y0, K, p, iw, tmp, aux, Ks, ys, atol, codes, gaps, rates, tags):
     """ys: the state at t + s h from one step of the method from (t, y0), K[0] = f(t, y0);
-    classified into codes..tags. Returns whether a slot has changed there."""
+    classified into codes..tags. Returns the slots changed there (changed_mask)."""
     for i in range(N_STATE):
         Ks[0, i] = K[0, i]
     I.take_step(int(p[Lp.METHOD]), rhs, t, y0, s * h, p, iw, Ks, tmp, ys, aux, atol, p[Lp.TOL], N_CTRL)
     classify(t + s * h, ys, p, iw, codes, gaps, rates, tags)
-    return any_changed(iw, codes, tags)
+    return changed_mask(iw, codes, tags)
 
 
 @kernel()
@@ -468,13 +469,16 @@ def release_state(t, h, th, y0, K, Q, p, iw, tmp, dy, aux, Ks, ys, atol, codes, 
     hi = 1.0
     g = th
     m = 0.0
+    mask = (1 << N_SLOTS) - 1  # the slots changed at hi (all: until a step shorter than h reached it)
     tol = NU.RELEASE_TOL * max(1.0, t) / h
     for _ in range(NU.RELEASE_TRIES):
         s = g + m * (hi - g)
-        if step_part(t, h, s, y0, K, p, iw, dy, aux, Ks, ys, atol, codes, gaps, rates, tags):
+        changed = step_part(t, h, s, y0, K, p, iw, dy, aux, Ks, ys, atol, codes, gaps, rates, tags)
+        if changed != 0:
             hi = s
+            mask = changed
             I.dense_coeffs(int(p[Lp.METHOD]), Ks, s * h, y0, ys, Q[4:], N_STATE)
-            g = located(t, h, lo, hi, y0, Q[4:], p, iw, tmp)
+            g = located(t, h, lo, hi, y0, Q[4:], p, iw, tmp, mask)
             if hi - g <= tol:
                 break
             m = NU.RELEASE_MARGIN
@@ -484,17 +488,17 @@ def release_state(t, h, th, y0, K, Q, p, iw, tmp, dy, aux, Ks, ys, atol, codes, 
             m = min(0.5, 4.0 * m) if m > 0.0 else NU.RELEASE_MARGIN
     Qh = Q[:4] if hi == 1.0 else Q[4:]  # the dense output of the step to hi
     if g <= lo:
-        g = located(t, h, lo, hi, y0, Qh, p, iw, tmp)
+        g = located(t, h, lo, hi, y0, Qh, p, iw, tmp, mask)
     I.dense_eval(y0, Qh, g / hi, ys, N_STATE)
     return g
 
 
 @kernel(inline="always")
-def located(t, h, lo, hi, y0, Q2, p, iw, tmp):
-    """The first slot change in [lo, hi] (fractions of h) on the dense output Q2 of the step
-    [t, t + hi h], just past it (integrate.bisect)."""
+def located(t, h, lo, hi, y0, Q2, p, iw, tmp, mask):
+    """The first change of a slot in mask in [lo, hi] (fractions of h) on the dense output Q2
+    of the step [t, t + hi h], just past it (integrate.bisect)."""
     sh = hi * h
-    return hi * I.bisect(_mask_changed, (t, sh, y0, Q2, p, iw, tmp, (1 << N_SLOTS) - 1), lo / hi, 1.0,
+    return hi * I.bisect(_mask_changed, (t, sh, y0, Q2, p, iw, tmp, mask), lo / hi, 1.0,
                          NU.EVENT_TOL * max(1.0, t) / sh)[1]
 
 
