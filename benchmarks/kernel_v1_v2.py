@@ -13,6 +13,10 @@ rounds, each a fresh process; the table gives each run's median over the rounds 
 ratio of every round beside it.
 
     python benchmarks/kernel_v1_v2.py --rounds 1   -> one round (quicker, noisier)
+
+In the same rounds the present kernel also runs the sample at LOOSER_TOLS, so that the page
+shows how the kernel's time moves with the tolerance (and tolerance_scan.py what those
+tolerances do to the validation set).
 """
 from __future__ import annotations
 
@@ -53,17 +57,24 @@ for case in ("small_far", "long_near"):
     for drive in ("flexible", "rigid"):
         ms, r = timed(prepare(resolve("cycle", case, drive=drive)), 50)
         rows.append({"case": case, "drive": drive, "ms": ms, "steps": r["n_steps"], "peak_force": r["peak_force"]})
-sample = []
-for case, b2, k2 in json.loads(sys.argv[1]):
-    ms, r = timed(prepare(resolve("cycle", case, B2=b2, K2=k2)), 10)
-    sample.append({"ms": ms, "steps": r["n_steps"], "peak_force": r["peak_force"], "outcome": r["outcome"]})
-print(json.dumps({"named": rows, "sample": sample}))
+def sample_at(**kw):
+    out_ = []
+    for case, b2, k2 in json.loads(sys.argv[1]):
+        ms, r = timed(prepare(resolve("cycle", case, B2=b2, K2=k2, **kw)), 10)
+        out_.append({"ms": ms, "steps": r["n_steps"], "peak_force": r["peak_force"], "outcome": r["outcome"]})
+    return out_
+looser = {str(sf): sample_at(step_factor=sf) for sf in json.loads(sys.argv[2])}
+print(json.dumps({"named": rows, "sample": sample_at(), "looser": looser}))
 """
 
 
 #: scenes of the main job in the fixed sample, and the seed that draws them from its grid
 SAMPLE, SEED = 60, 20261123
 ROUNDS = 3
+#: looser tolerances at which the present kernel also runs the sample (numerics.TOL x
+#: step_factor^5), to show what the kernel bar would cost in accuracy; tolerance_scan.py
+#: runs the validation set at the same tolerances
+LOOSER_TOLS = (2e-6, 4e-6, 1e-5)
 
 
 def b2k2_sample() -> list[tuple[str, float, float]]:
@@ -74,8 +85,18 @@ def b2k2_sample() -> list[tuple[str, float, float]]:
     return [(("small_far", "long_near")[i // 6561], float(b2[i % 6561 // 81]), float(k2[i % 81])) for i in idx]
 
 
-def run(where: Path) -> dict:
-    res = subprocess.run([sys.executable, "-c", CODE, json.dumps(b2k2_sample())], cwd=where, capture_output=True, text=True,
+def step_factor(tol: float) -> float:
+    """The step_factor that gives tolerance tol (numerics.py: TOL x step_factor^TOL_EXPONENT)."""
+    from fencesweep import numerics
+
+    return (tol / numerics.TOL) ** (1.0 / numerics.TOL_EXPONENT)
+
+
+def run(where: Path, step_factors: tuple = ()) -> dict:
+    """One round in a fresh process of the package at `where`: the named cases, the sample, and
+    the sample again at each of step_factors."""
+    res = subprocess.run([sys.executable, "-c", CODE, json.dumps(b2k2_sample()), json.dumps(list(step_factors))],
+                         cwd=where, capture_output=True, text=True,
                          env={"PYTHONPATH": str(where), "PATH": "/usr/bin:/bin"}, check=True)
     return json.loads(res.stdout.strip().splitlines()[-1])
 
@@ -87,7 +108,26 @@ def _median_run(runs: list[dict]) -> dict:
     def pick(rows):
         ms = statistics.median(r["ms"] for r in rows)
         return dict(min(rows, key=lambda r: abs(r["ms"] - ms)), ms=ms)
-    return {key: [pick(rows) for rows in zip(*(r[key] for r in runs))] for key in ("named", "sample")}
+    out = {key: [pick(rows) for rows in zip(*(r[key] for r in runs))] for key in ("named", "sample")}
+    out["looser"] = {sf: [pick(rows) for rows in zip(*(r["looser"][sf] for r in runs))] for sf in runs[0]["looser"]}
+    return out
+
+
+def looser_table(old: dict, new: dict, sfs: tuple) -> list[str]:
+    """The sample at the default and the looser tolerances: mean time and steps, and v1's
+    time over it (v1 at its own default, from the same rounds)."""
+    from fencesweep import numerics
+
+    t_old = sum(r["ms"] for r in old["sample"]) / len(old["sample"])
+    lines = ["", "The present kernel on the same sample at looser tolerances (the same rounds; v1 at its default). "
+             "What each tolerance does to the validation set: `results/tolerance_scan.md`.", "",
+             "| tolerance | step_factor | mean ms per cycle | mean steps | v1 / this |", "|---|---|---|---|---|"]
+    for tol, sf, rows in [(numerics.TOL, 1.0, new["sample"])] + [
+            (tol, sf, new["looser"][str(sf)]) for tol, sf in zip(LOOSER_TOLS, sfs)]:
+        ms = sum(r["ms"] for r in rows) / len(rows)
+        steps = sum(r["steps"] for r in rows) / len(rows)
+        lines.append(f"| {tol:g} | {sf:.3f} | {ms:.3f} | {steps:.1f} | {t_old / ms:.2f} |")
+    return lines
 
 
 def main() -> None:
@@ -97,11 +137,12 @@ def main() -> None:
     ap.add_argument("--rounds", type=int, default=ROUNDS, help=f"v1, v2 alternations (default {ROUNDS})")
     rounds = ap.parse_args().rounds
     olds, news = [], []
+    sfs = tuple(round(step_factor(tol), 6) for tol in LOOSER_TOLS)
     with tempfile.TemporaryDirectory() as tmp:
         v1 = export(V1, Path(tmp) / V1)
         for _ in range(rounds):
             olds.append(run(v1))
-            news.append(run(ROOT))
+            news.append(run(ROOT, sfs))
     ratios = [sum(r["ms"] for r in o["sample"]) / sum(r["ms"] for r in n["sample"]) for o, n in zip(olds, news)]
     old, new = _median_run(olds), _median_run(news)
     lines = ["# Kernel time per cycle: v1 (RK4, " + V1 + ") against v2 (this tree)", "",
@@ -123,6 +164,7 @@ def main() -> None:
               f"| v2 | {t_new / len(n):.3f} | {sum(r['steps'] for r in n) / len(n):.0f} | v1 / v2 = {t_old / t_new:.2f} |",
               "", "v1 / v2 on the sample, round by round: " + ", ".join(f"{r:.2f}" for r in ratios) + ".",
               "", f"Same outcome in {same} of {len(o)}; largest peak_force difference v1 - v2 {dpk:.1e} (relative)."]
+    lines += looser_table(old, new, sfs)
     text = "\n".join(lines) + "\n"
     print(text)
     (ROOT / "results" / "kernel_v1_v2.md").write_text(text)
