@@ -19,15 +19,16 @@ sys.path[:0] = [str(ROOT / "tests"), str(ROOT / "benchmarks")]
 
 import make_reference  # noqa: E402
 import test_validation as tv  # noqa: E402
+from kernel_v1_v2 import LOOSER_TOLS, step_factor  # noqa: E402  (the kernel's time at those)
 
 import fencesweep  # noqa: E402
 from fencesweep import numerics  # noqa: E402
 
-TOLS = (1e-8, 1e-7, 1e-6, 2e-6, 4e-6, 1e-5)  # the last three: kernel_v1_v2.LOOSER_TOLS too
+TOLS = (1e-8, 1e-7, numerics.TOL) + LOOSER_TOLS
 
 
 def scan(tol: float) -> dict:
-    sf = (tol / numerics.TOL) ** (1.0 / numerics.TOL_EXPONENT)
+    sf = step_factor(tol)
     worst = {k: (0.0, "") for k in ("peak_force", "deflection_max", "t_exit")}
     missed, steps = [], 0
     for ref in tv.ROWS:
