@@ -67,10 +67,10 @@ def main() -> None:
     ap.add_argument("--render", action="store_true", help="only rewrite the page from results/envelope_memory.csv")
     args = ap.parse_args()
     sys.path.insert(0, str(ROOT))
-    from fencesweep import spec as S
+    from fencesweep.study import specfile
 
     text = SPEC.read_text()
-    n_loads = len(S.load(SPEC).envelope.loads)
+    n_loads = len(specfile.load(SPEC).envelope.loads)
     if args.render:
         render(n_loads, args.jobs)
         return

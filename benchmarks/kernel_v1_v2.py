@@ -34,14 +34,14 @@ CODE = r"""
 import json, sys, time, statistics
 import numpy as np
 import fencesweep
-from fencesweep.params import resolve
-from fencesweep.setup import prepare
-from fencesweep.scenes.cycle import TRAJ_COLUMNS
+from fencesweep.model.params import resolve
+from fencesweep.model.prepare import prepare
+from fencesweep.model.scenes.cycle import TRAJ_COLUMNS
 try:  # since the scene stream, the kernel of both scenes lives in scenes/stream.py
-    from fencesweep.scenes.stream import cycle_kernel
+    from fencesweep.model.scenes.stream import cycle_kernel
 except ImportError:
-    from fencesweep.scenes.cycle import cycle_kernel
-from fencesweep.results import N_CYCLE_RESULTS, unpack
+    from fencesweep.model.scenes.cycle import cycle_kernel
+from fencesweep.model.results import N_CYCLE_RESULTS, unpack
 out = np.empty(N_CYCLE_RESULTS); traj = np.empty((0, len(TRAJ_COLUMNS)))
 def timed(p, n):
     cycle_kernel(p, out, traj)
@@ -87,7 +87,7 @@ def b2k2_sample() -> list[tuple[str, float, float]]:
 
 def step_factor(tol: float) -> float:
     """The step_factor that gives tolerance tol (numerics.py: TOL x step_factor^TOL_EXPONENT)."""
-    from fencesweep import numerics
+    from fencesweep.kernel import numerics
 
     return (tol / numerics.TOL) ** (1.0 / numerics.TOL_EXPONENT)
 
@@ -116,7 +116,7 @@ def _median_run(runs: list[dict]) -> dict:
 def looser_table(old: dict, new: dict, sfs: tuple) -> list[str]:
     """The sample at the default and the looser tolerances: mean time and steps, and v1's
     time over it (v1 at its own default, from the same rounds)."""
-    from fencesweep import numerics
+    from fencesweep.kernel import numerics
 
     t_old = sum(r["ms"] for r in old["sample"]) / len(old["sample"])
     lines = ["", "The present kernel on the same sample at looser tolerances (the same rounds; v1 at its default). "

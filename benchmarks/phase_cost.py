@@ -54,8 +54,8 @@ REPLAY = r"""
 import json, sys
 import fencesweep
 from fencesweep import integrate, params
-from fencesweep.api import simulate_resolved
-from fencesweep.scenes import cycle
+from fencesweep.model.simulate import simulate_resolved
+from fencesweep.model.scenes import cycle
 
 calls = []              # per rhs call: the start time of the current step attempt of the loop
 attempts = []           # per step attempt of the loop: (t, err)
@@ -179,12 +179,12 @@ def tsc_hz(rdtsc) -> float:
 
 def phase_times(case: str, drive: str, rounds: int, tools, hz: float) -> dict:
     """Median seconds per phase (watched), the kernel without a trajectory, and the step split."""
-    from fencesweep import params
-    from fencesweep.api import simulate_resolved
-    from fencesweep.results import N_CYCLE_RESULTS
-    from fencesweep.scenes.cycle import TRAJ_COLUMNS
-    from fencesweep.scenes.stream import cycle_kernel
-    from fencesweep.setup import prepare
+    from fencesweep.model import params
+    from fencesweep.model.simulate import simulate_resolved
+    from fencesweep.model.results import N_CYCLE_RESULTS
+    from fencesweep.model.scenes.cycle import TRAJ_COLUMNS
+    from fencesweep.model.scenes.stream import cycle_kernel
+    from fencesweep.model.prepare import prepare
 
     rdtsc, watch = tools
     vals = params.resolve("cycle", case, drive=drive)

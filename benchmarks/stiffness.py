@@ -43,9 +43,9 @@ def counted(vals: dict, method: str, rtol: float) -> dict:
 
 
 def main() -> None:
-    from fencesweep import api
-    from fencesweep import numerics as NU
-    from fencesweep import params as P
+    from fencesweep.model import simulate as api
+    from fencesweep.kernel import numerics as NU
+    from fencesweep.model import params as P
 
     rows = []
     for case in CASES:

@@ -31,10 +31,10 @@ ELEMENTS = {"72/570 (paper)": dict(B2=72.0, K2=570.0), "15/2075 (maps' recommend
 
 def _kernels(params: dict, ratio: float):
     from fencesweep import resolve
-    from fencesweep.results import N_CYCLE_RESULTS, N_STREAM_CYCLE_RESULTS
-    from fencesweep.scenes.cycle import TRAJ_COLUMNS
-    from fencesweep.scenes.stream import cycle_kernel, stream_kernel
-    from fencesweep.setup import load_table, prepare
+    from fencesweep.model.results import N_CYCLE_RESULTS, N_STREAM_CYCLE_RESULTS
+    from fencesweep.model.scenes.cycle import TRAJ_COLUMNS
+    from fencesweep.model.scenes.stream import cycle_kernel, stream_kernel
+    from fencesweep.model.prepare import load_table, prepare
 
     traj = np.empty((0, len(TRAJ_COLUMNS)))
     cycles, outs = [], []
@@ -59,7 +59,7 @@ def _time(fn, n: int) -> float:
 
 
 def measure(params: dict, ratio: float) -> dict:
-    from fencesweep.results import RI
+    from fencesweep.model.results import RI
 
     cycles, stream, out, outs = _kernels(params, ratio)
     for f in cycles + [stream]:

@@ -21,8 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
-from fencesweep import api, store, sweep
-from fencesweep import params as P
+from fencesweep.model import simulate as api
+from fencesweep.study import store, sweep
+from fencesweep.model import params as P
 
 
 def _noop(c, ids, rows, path, meta, shared=None):

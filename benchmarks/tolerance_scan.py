@@ -22,7 +22,7 @@ import test_validation as tv  # noqa: E402
 from kernel_v1_v2 import LOOSER_TOLS, step_factor  # noqa: E402  (the kernel's time at those)
 
 import fencesweep  # noqa: E402
-from fencesweep import numerics  # noqa: E402
+from fencesweep.kernel import numerics  # noqa: E402
 
 TOLS = (1e-8, 1e-7, numerics.TOL) + LOOSER_TOLS
 

@@ -45,7 +45,7 @@ sys.path[:0] = [str(ROOT), str(ROOT / "benchmarks"), str(ROOT / "tests")]
 import make_reference  # noqa: E402
 import test_validation as tv  # noqa: E402  (the validation test's error definition and floors)
 
-from fencesweep import numerics  # noqa: E402
+from fencesweep.kernel import numerics  # noqa: E402
 
 ENGINE_FACTORS = (4.0, 2.0, 1.0, 0.5, 0.25, 0.1)
 RK4_DTS = (1e-4, 3e-5, 1e-5)          # [s]; 1e-5 is the rk4 default

@@ -1,6 +1,6 @@
 """`python -m fencesweep`: the same command line as the `fencesweep` script."""
 import sys
 
-from .cli import main
+from fencesweep.cli import main
 
 sys.exit(main())

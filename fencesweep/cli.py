@@ -13,11 +13,12 @@ import math
 import sys
 from pathlib import Path
 
-from . import __version__
-from . import params as P
-from . import spec as S
-from . import sweep
-from .errors import UsageError
+from fencesweep import __version__
+from fencesweep.model import params as P
+from fencesweep.study import spec as S
+from fencesweep.study import specfile
+from fencesweep.study import sweep
+from fencesweep.errors import UsageError
 
 __all__ = ["main", "build_parser", "UsageError"]
 
@@ -51,8 +52,8 @@ def _json_value(value):
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from . import api
-    from .results import SCENE_RESULTS, UNITS
+    from fencesweep.model import simulate as api
+    from fencesweep.model.results import SCENE_RESULTS, UNITS
 
     overrides = _parse_sets(args.set)
     if args.loads is not None and args.scene != "stream":
@@ -67,7 +68,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             raise UsageError(f"--trajectory {args.trajectory!r} must end with .parquet")
     res, traj = api.simulate_resolved(vals, trajectory=bool(args.trajectory))
     if args.trajectory:
-        from .store import write_trajectory
+        from fencesweep.study.store import write_trajectory
 
         summary = {k: v for k, v in res.items() if k != "cycles"}
         write_trajectory(traj, args.trajectory, dict(vals, loads=None if loads is None else list(vals["loads"])),
@@ -112,7 +113,7 @@ STREAM_COLUMNS = ("outcome", "t_exit", "overload", "deflection_max", "residual_a
 
 def _print_stream(args: argparse.Namespace, res: dict, traj) -> None:
     """A stream's results (MODEL.md §14): the summary and the per-cycle table, or one JSON object."""
-    from .results import STREAM_RESULTS, UNITS
+    from fencesweep.model.results import STREAM_RESULTS, UNITS
 
     cycles = res["cycles"]
     if args.json:
@@ -166,7 +167,7 @@ def cmd_grid(args: argparse.Namespace) -> int:
     if args.scheduler and args.backend != "dask":
         raise UsageError("--scheduler is only used with --backend dask")
     say = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
-    spec = S.load(args.spec)
+    spec = specfile.load(args.spec)
     out = Path(args.out) if args.out else sweep.default_output(spec)
     if spec.envelope is not None and spec.envelope.skipped:
         say(f"note: {_skip_note(spec)}")
@@ -192,14 +193,14 @@ def cmd_grid(args: argparse.Namespace) -> int:
 
 
 def _skip_note(spec: S.Spec) -> str:
-    from . import envelope as E
+    from fencesweep.study import envelope as E
 
     return E._skip_text(spec.envelope, "cannot start on the belt and are skipped (envelope.invalid: skip)")
 
 
 def _envelope_points(spec: S.Spec, out: Path, say) -> None:
     """An envelope sweep: the per-design-point table beside the per-load one, and a summary."""
-    from . import envelope as E
+    from fencesweep.study import envelope as E
 
     path, pts = E.write_points(spec, out)
     feas = int(pts["feasible"].sum())
@@ -227,11 +228,11 @@ def add_design_parser(sub) -> argparse.ArgumentParser:
 
 
 def cmd_design(args: argparse.Namespace) -> int:
-    from . import design as D
+    from fencesweep.study import design as D
 
     if args.jobs < 1:
         raise UsageError(f"--jobs {args.jobs} is not allowed: --jobs must be >= 1")
-    spec = S.load(args.spec)
+    spec = specfile.load(args.spec)
     if spec.design is None:
         raise UsageError(f"{args.spec} has no design: section (variables, constraints, objective); see "
                          f"sweeps/envelope.yaml")
@@ -258,13 +259,13 @@ def add_sensitivity_parser(sub) -> argparse.ArgumentParser:
 
 
 def cmd_sensitivity(args: argparse.Namespace) -> int:
-    from . import sensitivity as SA
+    from fencesweep.study import sensitivity as SA
 
     if args.jobs is not None and args.jobs < 1:
         raise UsageError(f"--jobs {args.jobs} is not allowed: --jobs must be >= 1")
     if args.out is not None and not args.out.endswith(".parquet"):
         raise UsageError(f"--out {args.out!r} must end with .parquet")
-    spec = S.load(args.spec)
+    spec = specfile.load(args.spec)
     if spec.sensitivity is None:
         raise UsageError(f"{args.spec} has no sensitivity: section; see sweeps/sensitivity.yaml")
     say = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
@@ -275,7 +276,7 @@ def cmd_sensitivity(args: argparse.Namespace) -> int:
 
 
 def add_plot_design_parser(sub) -> argparse.ArgumentParser:
-    from .plots_design import FIGURES
+    from fencesweep.report.design_figures import FIGURES
 
     what = list(FIGURES) + ["all"]
     g = sub.add_parser("plot-design", help="draw the design figures (envelope map, loads, window, sensitivity)",
@@ -291,7 +292,7 @@ def add_plot_design_parser(sub) -> argparse.ArgumentParser:
 
 
 def cmd_plot_design(args: argparse.Namespace) -> int:
-    from .plots_design import FIGURES, MissingTable, plot
+    from fencesweep.report.design_figures import FIGURES, MissingTable, plot
 
     bad = [w for w in args.what if w not in FIGURES and w != "all"]
     if bad:
@@ -358,6 +359,59 @@ def _human(seconds: float) -> str:
     return f"{seconds / 3600:.1f} h"
 
 
+def add_plot_parser(sub) -> argparse.ArgumentParser:
+    """Register `fencesweep plot` on the CLI's subparsers."""
+    from fencesweep.report import analysis as A
+    from fencesweep.report import figures as F
+
+    what = list(F.FIGURES) + ["all", "trajectories", "report"]
+    g = sub.add_parser(
+        "plot", help="draw the paper's figures and the design maps (PNG) from the results tables",
+        description="Draw figures into RESULTS/figures/ from the sweep tables and trajectories in RESULTS "
+                    "(needs matplotlib: pip install 'fencesweep[plot]'). 'trajectories' runs the single cycles "
+                    "the figures need; 'report' writes RESULTS/REPORT.md. Figures: "
+                    + "; ".join(f"{k}: {v[1]}" for k, v in F.FIGURES.items()))
+    g.add_argument("what", nargs="*", default=["all"], choices=what, metavar="NAME",
+                   help=f"one or more of: {', '.join(what)} (default: all)")
+    g.add_argument("--results", default="results", metavar="DIR",
+                   help="directory of the tables and trajectories (default: results)")
+    g.add_argument("--out", default=None, metavar="DIR", help="where the PNGs go (default: RESULTS/figures)")
+    g.add_argument("--residual-max", type=float, default=A.RESIDUAL_MAX_DEG, metavar="DEG",
+                   help=f"residual amplitude [deg] under which the fence counts as home for the next cycle "
+                        f"(design maps, report; default {A.RESIDUAL_MAX_DEG:g})")
+    g.set_defaults(func=cmd_plot)
+    return g
+
+
+def cmd_plot(args: argparse.Namespace) -> int:
+    from fencesweep.report import analysis as A
+    from fencesweep.report import document
+    from fencesweep.report import figures as F
+
+    res = Path(args.results)
+    what = args.what or ["all"]
+    try:
+        if "trajectories" in what:
+            A.make_trajectories(res, residual_max_deg=args.residual_max)
+            what = [w for w in what if w != "trajectories"]
+            if not what:
+                return 0
+        report = "report" in what
+        what = [w for w in what if w != "report"]
+        if what:
+            for p in F.plot(what, res, args.out, args.residual_max):
+                print(p)
+        if report:
+            print(document.write_report(res, args.residual_max))
+    except A.MissingInput as exc:
+        print(f"fencesweep: error: {exc}", file=sys.stderr)
+        return 2
+    except ImportError as exc:
+        print(f"fencesweep: error: {exc}; install the plotting extra: pip install 'fencesweep[plot]'", file=sys.stderr)
+        return 2
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="fencesweep", description="Active rotary fence: one cycle, or sweeps of many.")
     ap.add_argument("--version", action="version", version=f"fencesweep {__version__}")
@@ -375,8 +429,6 @@ def build_parser() -> argparse.ArgumentParser:
                      help="scene stream: one load per cycle, named cases separated by commas "
                           "(small_far,long_near,...) or a CSV file with columns among L, A, m1, dP, R_s, phi0")
     run.set_defaults(func=cmd_run)
-
-    from .plots import add_plot_parser  # matplotlib is imported only when a plot is drawn
 
     add_grid_parser(sub)
     add_design_parser(sub)

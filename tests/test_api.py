@@ -3,15 +3,16 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from fencesweep import api, resolve
-from fencesweep.scenes import cycle, stream
+from fencesweep.model import simulate as api
+from fencesweep import resolve
+from fencesweep.model.scenes import cycle, stream
 
 pytestmark = pytest.mark.plain_python  # also run without Numba's JIT: tests/test_plain_python.py
 
 
 def test_kernel_reports_the_rows_a_short_buffer_could_not_hold():
-    from fencesweep.results import N_CYCLE_RESULTS
-    from fencesweep.setup import prepare
+    from fencesweep.model.results import N_CYCLE_RESULTS
+    from fencesweep.model.prepare import prepare
 
     p = prepare(resolve("cycle", "small_far"))
     out = np.empty(N_CYCLE_RESULTS)

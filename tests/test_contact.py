@@ -6,9 +6,8 @@ import pytest
 from scipy.integrate import dblquad
 
 from fencesweep import simulate
-from fencesweep.calibrate import damping_coefficient
-from fencesweep.contact import (belt_friction, coulomb, drop_speed, hertz_contact_time, hertz_peak,
-                                mean_footprint_radius, normal_force)
+from fencesweep.model.calibrate import damping_coefficient
+from fencesweep.model.contact import belt_friction, coulomb, drop_speed, hertz_contact_time, hertz_peak, mean_footprint_radius, normal_force
 
 pytestmark = pytest.mark.plain_python  # also run without Numba's JIT: tests/test_plain_python.py
 
@@ -100,7 +99,7 @@ def test_friction_never_exceeds_its_limit():
 def test_linear_law_freefall_peak_is_the_jump_when_overdamped():
     # x'' = -(x + beta x'): the force starts at beta (times w sqrt(m1 k_lin)) and its rate
     # w k (1 - beta^2) is negative for beta > 1, so the peak is the jump at contact, b_lin v_H
-    from fencesweep.contact import derived_k_lin
+    from fencesweep.model.contact import derived_k_lin
     beta = damping_coefficient(0.2, "linear")
     assert beta > 1
     k_lin = derived_k_lin(15.0, 4e6, 0.3)

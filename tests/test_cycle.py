@@ -7,11 +7,11 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
 from fencesweep import resolve, simulate, simulate_resolved
-from fencesweep import layout as Lp
-from fencesweep.drive import drive_angle
-from fencesweep.params import relative_damping
-from fencesweep.scenes.cycle import IW_LOAD, IW_MODE, FM_KELVIN, N_AUX, N_IW, N_STATE, rhs
-from fencesweep.setup import prepare
+from fencesweep.model import layout as Lp
+from fencesweep.model.drive import drive_angle
+from fencesweep.model.params import relative_damping
+from fencesweep.model.scenes.cycle import IW_LOAD, IW_MODE, FM_KELVIN, N_AUX, N_IW, N_STATE, rhs
+from fencesweep.model.prepare import prepare
 
 pytestmark = pytest.mark.plain_python  # also run without Numba's JIT: tests/test_plain_python.py
 

@@ -6,8 +6,9 @@ import textwrap
 import pandas as pd
 import pytest
 
-from fencesweep import design as D
-from fencesweep import spec as S
+from fencesweep.study import design as D
+from fencesweep.study import spec as S
+from fencesweep.study import specfile
 from fencesweep.cli import main
 
 TINY = """
@@ -31,7 +32,7 @@ TINY = """
 
 
 def load(text: str) -> S.Spec:
-    return S.loads(textwrap.dedent(text))
+    return specfile.loads(textwrap.dedent(text))
 
 
 @pytest.mark.parametrize("change, words", [
@@ -60,7 +61,7 @@ def test_design_finds_verifies_and_writes_a_checkable_recommendation(tmp_path, c
     path.write_text(textwrap.dedent(TINY))
     assert main(["design", str(path), "--out", str(tmp_path / "d"), "--quiet"]) == 0
     rec = json.loads((tmp_path / "d" / "recommended.json").read_text())
-    sp = S.load(path)
+    sp = specfile.load(path)
     point = rec["design_variables"]
     assert set(point) == {"B2", "K2"} and 10 <= point["B2"] <= 200 and 500 <= point["K2"] <= 2100
     assert rec["envelope"]["loads"] == [list(x) for x in sp.envelope.loads]

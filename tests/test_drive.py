@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from fencesweep import resolve
-from fencesweep.drive import crank_rocker_geometry, drive_angle, rocker_angle
-from fencesweep.setup import prepare
+from fencesweep.model.drive import crank_rocker_geometry, drive_angle, rocker_angle
+from fencesweep.model.prepare import prepare
 
 pytestmark = pytest.mark.plain_python  # also run without Numba's JIT: tests/test_plain_python.py
 

@@ -7,9 +7,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from fencesweep import envelope as E
-from fencesweep import spec as S
-from fencesweep import sweep
+from fencesweep.study import envelope as E
+from fencesweep.study import spec as S
+from fencesweep.study import specfile
+from fencesweep.study import sweep
 from fencesweep.cli import main
 
 BOX = """
@@ -27,7 +28,7 @@ BOX = """
 
 
 def load(text: str) -> S.Spec:
-    return S.loads(textwrap.dedent(text))
+    return specfile.loads(textwrap.dedent(text))
 
 
 def test_corners_then_sobol_points_same_for_every_design_point():
@@ -98,7 +99,7 @@ def test_worst_per_design_point_is_the_max_over_its_loads(tmp_path, capsys):
     assert "design points" in capsys.readouterr().err
     per_load = pd.read_parquet(tmp_path / "env.parquet")
     pts = pd.read_parquet(tmp_path / "env_points.parquet")
-    sp = S.load(path)
+    sp = specfile.load(path)
     assert len(per_load) == 2 * len(sp.envelope.loads) and len(pts) == 2
     per_load["load"] = E.load_index(per_load, sp.envelope)
     assert (per_load["load"] >= 0).all()
@@ -163,9 +164,9 @@ def test_cases_that_override_params_tell_the_design_points_apart():
 def test_an_interrupted_envelope_sweep_resumes_and_dask_gives_the_same_table(tmp_path, monkeypatch):
     from pathlib import Path
 
-    from fencesweep import store
+    from fencesweep.study import store
 
-    sp = S.loads(textwrap.dedent(BOX).replace("sobol: 8", "sobol: 2") + "chunk_size: 5\n")
+    sp = specfile.loads(textwrap.dedent(BOX).replace("sobol: 8", "sobol: 2") + "chunk_size: 5\n")
     ref = sweep.run_sweep(sp, tmp_path / "ref.parquet", jobs=1)
     real_write, written = store.write_chunk, []
 

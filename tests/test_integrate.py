@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from numba import njit
 
-from fencesweep import integrate as I
+from fencesweep.kernel import integrate as I
 
 TOL = 1e-6
 #: Golden-section search needs log(TOL) / log(0.618) ~ 29 evaluations to reach TOL; Brent's

@@ -11,11 +11,11 @@ import pytest
 from numba.core.dispatcher import Dispatcher
 from numba.core.errors import TypingError
 
-from fencesweep import api
-from fencesweep.jit import kernel
+from fencesweep.model import simulate as api
+from fencesweep.kernel.jit import kernel
 
-KERNEL_MODULES = ("integrate", "drive", "contact", "scenes.contacts", "scenes.load", "scenes.cycle",
-                  "scenes.stream", "scenes.impact", "scenes.freefall")
+KERNEL_MODULES = ("kernel.integrate", "model.drive", "model.contact", "model.scenes.contacts", "model.scenes.load",
+                  "model.scenes.cycle", "model.scenes.stream", "model.scenes.impact", "model.scenes.freefall")
 ALLOCATING = {"stream_kernel", "cycle_kernel", "impact_kernel"}
 
 
@@ -50,7 +50,7 @@ def test_loading_the_kernels_imports_neither_scipy_linalg_nor_cffi_nor_coverage(
     uses; the kernels run the same without them."""
     here = api.simulate(case="small_far")  # compiles into the cache if it is not there
     unused = ["scipy.linalg", "cffi", "pycparser", "coverage"]
-    code = ("import sys, json\nfrom fencesweep import api\nr = api.simulate(case='small_far')\n"
+    code = ("import sys, json\nfrom fencesweep.model import simulate as api\nr = api.simulate(case='small_far')\n"
             f"print(json.dumps([[m for m in {unused!r} if m in sys.modules], r['peak_force']]))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     imported, peak = json.loads(out.stdout.strip().splitlines()[-1])
@@ -59,7 +59,7 @@ def test_loading_the_kernels_imports_neither_scipy_linalg_nor_cffi_nor_coverage(
 
 
 def test_a_module_imported_already_is_not_hidden():
-    from fencesweep.jit import _hidden
+    from fencesweep.kernel.jit import _hidden
 
     with _hidden("json", "fencesweep_no_such_module"):
         assert sys.modules["json"] is json

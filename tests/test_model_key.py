@@ -17,7 +17,7 @@ import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from fencesweep import params as P
+from fencesweep.model import params as P
 from fencesweep import simulate_resolved
 
 #: draws around the defaults, inside MODEL.md §12's bounds, so that each run stays short

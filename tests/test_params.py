@@ -4,7 +4,7 @@ import math
 import pytest
 
 from fencesweep import ParameterError, resolve, simulate
-from fencesweep.params import CASES, TABLE, model_key, parse_value
+from fencesweep.model.params import CASES, TABLE, model_key, parse_value
 
 
 def test_defaults_follow_model_table():

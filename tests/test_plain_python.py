@@ -3,7 +3,7 @@ off (NUMBA_DISABLE_JIT=1), as pvlib runs its Numba and plain paths through one s
 
 Without the JIT the kernels are ordinary Python functions, so the run also measures how much
 of the compiled code the tests execute: at least KERNEL_COVERAGE of the statements of the
-kernel sources (fencesweep._cache's list of them) must run.
+kernel sources (fencesweep.kernel.cache's list of them) must run.
 """
 import importlib.util
 import json
@@ -12,7 +12,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from fencesweep._cache import _KERNEL_SOURCES
+from fencesweep.kernel.cache import _KERNEL_SOURCES
 
 ROOT = Path(__file__).resolve().parent.parent
 #: measured 90.7 % when this test was written (the kernels of 0.1.0 + kernel v2)

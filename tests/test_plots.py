@@ -15,9 +15,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from fencesweep import params as P
-from fencesweep import report as RP
-from fencesweep import store
+from fencesweep.model import params as P
+from fencesweep.report import analysis as RP
+from fencesweep.report import document as DOC
+from fencesweep.study import store
 
 pytest.importorskip("matplotlib")
 
@@ -110,7 +111,7 @@ def results(tmp_path_factory) -> Path:
 
 # ---------------------------------------------------------------------------- tests
 def test_plot_all_writes_every_png(results):
-    from fencesweep import plots
+    from fencesweep.report import figures as plots
 
     out = results / "figures"
     paths = plots.plot(["all"], results, out)
@@ -122,7 +123,7 @@ def test_plot_all_writes_every_png(results):
 
 
 def test_report_is_written(results):
-    path = RP.write_report(results)
+    path = DOC.write_report(results)
     text = path.read_text()
     for part in ("## 1. The paper's results", "| 6 |", "## 2. Design maps", "**Recommendation: B2 = 50",
                  "residual_amplitude <= 1 deg", "bash results/regenerate.sh", "## 4. Where our numbers differ"):
@@ -175,7 +176,7 @@ def test_cli_plot_and_missing_input(results, tmp_path, capsys):
 
 def test_plots_import_without_matplotlib():
     code = ("import sys; sys.modules['matplotlib'] = None\n"
-            "import fencesweep.plots, fencesweep.cli\n"
+            "import fencesweep.report.figures, fencesweep.cli\n"
             "ap = fencesweep.cli.build_parser(); ap.parse_args(['plot', 'all'])\n")
     subprocess.run([sys.executable, "-c", code], check=True)
 
@@ -187,20 +188,20 @@ def test_report_numbers_follow_the_tables(results, tmp_path):
 
     res = tmp_path / "res"
     shutil.copytree(results, res)
-    text = RP.write_report(res).read_text()
+    text = DOC.write_report(res).read_text()
     psi = pd.read_parquet(res / "psi_b2.parquet")
     sf = psi[psi.case == "small_far"]
     assert f"to at most {sf.damper_energy.max():.1f} J" in text      # small_far's energy rises with B2 here
     assert "the energy trend depends on the load" in text
     psi.loc[psi.case == "small_far", "damper_energy"] = 10 / psi.B2   # now it falls, like long_near's
     psi.to_parquet(res / "psi_b2.parquet")
-    text = RP.write_report(res).read_text()
+    text = DOC.write_report(res).read_text()
     assert "the energy trend is the paper's for both loads" in text
     assert "the energy trend depends on the load" not in text
 
 
 def test_report_fig5a_section(results):
-    text = RP.write_report(results).read_text()
+    text = DOC.write_report(results).read_text()
     part = text.split("### Fig. 5a")[1].split("## 2.")[0]
     w = RP.worst_over_placements(pd.read_parquet(results / "fig5a_worst_v.parquet"))
     wp = w[(w.t_c == 1.36) & (w.v == 2.0)].set_index("drive")
@@ -227,9 +228,9 @@ def test_escape_causes_read_off_the_row():
             dict(base, v=2.4, t_first_contact=(xt - 0.01) / 2.4),           # corner 1 cm short of it
             dict(base, v=1.0, t_first_contact=0.5, contact_time=0.2),       # B = 0.7 > t_c / 2
             dict(base, v=1.0, t_first_contact=0.3)]                         # none of these
-    got = RP.escape_cause(pd.DataFrame(rows)).tolist()
+    got = DOC.escape_cause(pd.DataFrame(rows)).tolist()
     assert got == ["", "no_contact", "free", "tip", "at_tip", "late", "other"]
-    assert set(got) - {""} <= set(RP.ESCAPE_CAUSES)
+    assert set(got) - {""} <= set(DOC.ESCAPE_CAUSES)
 
 
 def test_jump_is_explained_only_when_the_corner_passes_the_tip(results, tmp_path):
@@ -244,20 +245,20 @@ def test_jump_is_explained_only_when_the_corner_passes_the_tip(results, tmp_path
     f5a.loc[(f5a.case == "small_far") & (f5a.v == 2.0), "t_first_contact"] = (xt - 0.05) / 2.0
     f5a.loc[jump, "t_first_contact"] = (xt + 0.05) / 3.0                # and the corner passes the tip there
     f5a.to_parquet(res / "fig5a.parquet")
-    part = RP.write_report(res).read_text().split("**The jumps")[1].split("**The escapes")[0]
+    part = DOC.write_report(res).read_text().split("**The jumps")[1].split("**The escapes")[0]
     along_v = part.split("Along t_c")[0]
     assert f"{xt - 0.05:.3f} m before the step and {xt + 0.05:.3f} m after it" in along_v
     assert "already past the tip" in along_v
     f5a.loc[jump, "t_first_contact"] = (xt - 0.1) / 3.0                 # the same jump, the corner short of the tip
     f5a.to_parquet(res / "fig5a.parquet")
-    along_v = RP.write_report(res).read_text().split("**The jumps")[1].split("Along t_c")[0]
+    along_v = DOC.write_report(res).read_text().split("**The jumps")[1].split("Along t_c")[0]
     assert "this jump has another cause" in along_v and "already past the tip" not in along_v
 
 
 def test_residual_reason_is_computed():
-    text = RP.residual_reason(1.0, 15.0, 1.2, 0.1)
+    text = DOC.residual_reason(1.0, 15.0, 1.2, 0.1)
     assert "6.7% of the permitted deflection (15 deg)" in text and "21 mm off the rail line" in text
-    assert "42 mm" in RP.residual_reason(2.0, 15.0, 1.2, 0.1)
+    assert "42 mm" in DOC.residual_reason(2.0, 15.0, 1.2, 0.1)
 
 
 def test_report_reads_where_the_worst_placements_peak(results, tmp_path):
@@ -269,5 +270,5 @@ def test_report_reads_where_the_worst_placements_peak(results, tmp_path):
         df, vals, r = _trajectory("small_far", {"drive": drive, "dP": 0.5, "R_s": 0.3})
         df.loc[df["N_fence"].idxmax(), "stage"] = stage
         store.write_trajectory(df, RP.traj_path(res, f"worst_{drive}"), vals, r)
-    text = RP.write_report(res).read_text()
+    text = DOC.write_report(res).read_text()
     assert "peak in stage S3 (rigid, dP = 0.5, R_s = 0.3 m" in text and "S1 (flexible, dP = 0.5" in text

@@ -7,10 +7,10 @@ import textwrap
 import pandas as pd
 import pytest
 
-from fencesweep import design as D
-from fencesweep import report_design as R
-from fencesweep import spec as S
-from fencesweep import sweep
+from fencesweep.study import design as D
+from fencesweep.report import design_text as R
+from fencesweep.study import specfile
+from fencesweep.study import sweep
 
 SPEC = """
     params: {drive: flexible}
@@ -39,14 +39,14 @@ SWING = """
 
 @pytest.fixture(scope="module")
 def res(tmp_path_factory):
-    from fencesweep import envelope as E
+    from fencesweep.study import envelope as E
 
     res = tmp_path_factory.mktemp("results")
-    sp = S.loads(textwrap.dedent(SPEC))
+    sp = specfile.loads(textwrap.dedent(SPEC))
     sweep.run_sweep(sp, res / "envelope.parquet", jobs=1)
     E.write_points(sp, res / "envelope.parquet")
     D.run_design(sp, out_dir=res / "design")
-    sweep.run_sweep(S.loads(textwrap.dedent(SWING)), res / "swing.parquet", jobs=1)
+    sweep.run_sweep(specfile.loads(textwrap.dedent(SWING)), res / "swing.parquet", jobs=1)
     return res
 
 
@@ -78,7 +78,7 @@ def test_no_section_before_design_has_run(tmp_path):
 
 def test_design_figures_are_drawn(res, tmp_path):
     pytest.importorskip("matplotlib")
-    from fencesweep import plots_design as PD
+    from fencesweep.report import design_figures as PD
 
     paths = PD.plot(["envelope_map", "envelope_loads"], res, tmp_path)
     assert [p.name for p in paths] == ["envelope_map.png", "envelope_loads.png"]
@@ -91,7 +91,7 @@ def test_design_figures_are_drawn(res, tmp_path):
 
 
 def test_section_2_points_to_the_envelope_recommendation_only_when_there_is_one(tmp_path):
-    from fencesweep.report import _envelope_pointer
+    from fencesweep.report.document import _envelope_pointer
 
     assert _envelope_pointer(tmp_path) == []
     (tmp_path / "design").mkdir()

@@ -4,7 +4,9 @@ import textwrap
 import pandas as pd
 import pytest
 
-from fencesweep import spec as S
+from fencesweep.study import spec as S
+
+from fencesweep.study import specfile
 
 SA_SPEC = """
     params: {drive: flexible, B2: 140, K2: 2075}
@@ -23,7 +25,7 @@ SA_SPEC = """
 
 
 def load(text):
-    return S.loads(textwrap.dedent(text))
+    return specfile.loads(textwrap.dedent(text))
 
 
 @pytest.mark.parametrize("change, words", [
@@ -44,8 +46,8 @@ def test_bad_sensitivity_sections_are_rejected(change, words):
 
 def test_indices_from_the_sample_judged_over_the_envelope(tmp_path):
     pytest.importorskip("SALib")
-    from fencesweep import envelope as E
-    from fencesweep import sensitivity as SA
+    from fencesweep.study import envelope as E
+    from fencesweep.study import sensitivity as SA
 
     sp = load(SA_SPEC)
     out = tmp_path / "sa.parquet"

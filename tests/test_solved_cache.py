@@ -3,9 +3,9 @@ import math
 
 import pytest
 
-from fencesweep import _cache
-from fencesweep.calibrate import damping_coefficient, solve_damping_coefficient
-from fencesweep.drive import crank_rocker_geometry, solve_crank_rocker_geometry
+from fencesweep.kernel import cache as _cache
+from fencesweep.model.calibrate import damping_coefficient, solve_damping_coefficient
+from fencesweep.model.drive import crank_rocker_geometry, solve_crank_rocker_geometry
 
 
 @pytest.fixture

@@ -4,12 +4,13 @@ import textwrap
 import numpy as np
 import pytest
 
-from fencesweep import params as P
-from fencesweep import spec as S
+from fencesweep.model import params as P
+from fencesweep.study import spec as S
+from fencesweep.study import specfile
 
 
 def load(text: str) -> S.Spec:
-    return S.loads(textwrap.dedent(text))
+    return specfile.loads(textwrap.dedent(text))
 
 
 def all_inputs(sp: S.Spec) -> list:
@@ -160,7 +161,7 @@ def test_shipped_sweeps_parse():
     specs = sorted(pathlib.Path(__file__).parent.parent.joinpath("sweeps").glob("*.yaml"))
     assert {p.stem for p in specs} >= {"b2k2", "tc_v", "placement", "impact_m2", "psi_b2"}
     for p in specs:
-        sp = S.load(p)
+        sp = specfile.load(p)
         assert sp.n_scenes >= 1 and sp.output and sp.output.endswith(".parquet")
 
 
@@ -210,7 +211,7 @@ BAD = [
 @pytest.mark.parametrize("text, parts", BAD, ids=[t.splitlines()[0][:40] for t, _ in BAD])
 def test_bad_spec_is_rejected_with_key_value_and_allowed(text, parts):
     with pytest.raises(S.SpecError) as info:
-        S.loads(text)
+        specfile.loads(text)
     msg = str(info.value)
     for part in parts:
         assert part in msg, msg
@@ -218,7 +219,7 @@ def test_bad_spec_is_rejected_with_key_value_and_allowed(text, parts):
 
 
 def test_spec_error_message_names_the_parameter_for_an_invalid_start():
-    from fencesweep import sweep
+    from fencesweep.study import sweep
 
     sp = load("grid: {dP: [0, 0.5, 0.7]}")  # long default load: 0.7 + 0.1 > P_max
     with pytest.raises(S.SpecError) as info:
@@ -228,7 +229,7 @@ def test_spec_error_message_names_the_parameter_for_an_invalid_start():
 
 
 def test_psi_giving_K2_out_of_range_is_reported_up_front():
-    from fencesweep import sweep
+    from fencesweep.study import sweep
 
     sp = load("params: {Psi: 0.01}\ngrid: {B2: [10, 1000]}")
     with pytest.raises(S.SpecError) as info:
@@ -238,7 +239,7 @@ def test_psi_giving_K2_out_of_range_is_reported_up_front():
 
 
 def test_invalid_skip_drops_bad_starts_and_reports_them():
-    from fencesweep import sweep
+    from fencesweep.study import sweep
 
     sp = load("""
         invalid: skip

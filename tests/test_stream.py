@@ -11,8 +11,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from fencesweep import ParameterError, api, resolve, simulate
-from fencesweep.results import CYCLE_RESULTS, STREAM_CYCLE_RESULTS, STREAM_RESULTS
+from fencesweep import ParameterError, resolve, simulate
+from fencesweep.model import simulate as api
+from fencesweep.model.results import CYCLE_RESULTS, STREAM_CYCLE_RESULTS, STREAM_RESULTS
 
 #: results that count the integrator's work, not the physics (a stream's cycle also steps its rest)
 WORK = {"n_steps", "n_rejected", "error_estimate"}
@@ -151,7 +152,7 @@ def test_loads_belong_to_the_stream_only():
 
 
 def test_a_stream_too_large_for_the_memory_is_refused(monkeypatch):
-    monkeypatch.setattr("fencesweep.sweep.available_memory", lambda: 2**30)  # 1 GiB
+    monkeypatch.setattr("fencesweep.resources.available_memory", lambda: 2**30)  # 1 GiB
     with pytest.raises(ParameterError, match=r"n_cycles = 1000000 is too large .* n_cycles must be <= 262144"):
         simulate("stream", n_cycles=1_000_000)
     with pytest.raises(ParameterError, match="n_cycles = 2000000 is out of range"):
@@ -178,10 +179,10 @@ grid:
 
 
 def test_a_stream_sweep_writes_one_row_per_cycle_with_its_stream_results(tmp_path):
-    from fencesweep import spec as S
-    from fencesweep import store, sweep
+    from fencesweep.study import specfile
+    from fencesweep.study import store, sweep
 
-    sweep.run_sweep(S.loads(STREAM_SPEC), tmp_path / "s.parquet", jobs=1, progress=False)
+    sweep.run_sweep(specfile.loads(STREAM_SPEC), tmp_path / "s.parquet", jobs=1, progress=False)
     df = store.read_table(tmp_path / "s.parquet")
     assert list(df.cycle) == [0, 1, 0, 1] and list(df.period) == [1.36, 1.36, 2.0, 2.0]
     assert df.attrs["units"]["start_amplitude"] == "rad" and df.attrs["units"]["throughput"] == "1/h"
@@ -202,10 +203,11 @@ def test_a_stream_sweep_writes_one_row_per_cycle_with_its_stream_results(tmp_pat
     ("scene: stream\nloads: small_far\n", ["loads = 'small_far'", "non-empty list"]),
 ])
 def test_a_bad_loads_list_in_a_spec_is_refused(text, words):
-    from fencesweep import spec as S
+    from fencesweep.study import spec as S
+    from fencesweep.study import specfile
 
     with pytest.raises(S.SpecError) as err:
-        S.loads(text)
+        specfile.loads(text)
     for w in words:
         assert w in str(err.value)
 
@@ -214,7 +216,7 @@ def test_cli_prints_the_cycles_and_the_summary_and_writes_the_whole_series(tmp_p
     import json
 
     from fencesweep import cli
-    from fencesweep.store import read_trajectory
+    from fencesweep.study.store import read_trajectory
 
     path = tmp_path / "t.parquet"
     assert cli.main(["run", "--scene", "stream", "--loads", "small_far,long_near", "--set", "period=2",
@@ -232,7 +234,7 @@ def test_cli_prints_the_cycles_and_the_summary_and_writes_the_whole_series(tmp_p
 
 
 def test_the_shortest_safe_period_is_the_one_from_which_every_longer_period_is_safe():
-    from fencesweep.report import shortest_safe_period
+    from fencesweep.report.document import shortest_safe_period
 
     g = pd.DataFrame({"period": [1.0, 1.1, 1.2, 1.3], "ok": [True, False, True, True]})
     assert shortest_safe_period(g) == 1.2

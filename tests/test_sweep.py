@@ -19,10 +19,14 @@ import pandas as pd
 import pyarrow.parquet as pq
 import pytest
 
-from fencesweep import api, cli, store, sweep
-from fencesweep import params as P
-from fencesweep import results as R
-from fencesweep import spec as S
+from fencesweep.model import simulate as api
+from fencesweep import cli
+from fencesweep.study import store, sweep
+from fencesweep.model import params as P
+from fencesweep.model import results as R
+from fencesweep.study import spec as S
+from fencesweep.study import specfile
+from fencesweep import resources
 from fencesweep.errors import UsageError
 
 cloudpickle.register_pickle_by_value(sys.modules[__name__])
@@ -76,7 +80,7 @@ SPEC = """
 
 
 def spec(text=SPEC) -> S.Spec:
-    return S.loads(textwrap.dedent(text))
+    return specfile.loads(textwrap.dedent(text))
 
 
 def run(tmp_path, name="t.parquet", text=SPEC, **kw) -> sweep.Outcome:
@@ -355,7 +359,7 @@ def sweep_to_kill(tmp_path, out: Path, **kw) -> list:
     engine goes to it pickled by value (this module is registered with cloudpickle)."""
     job = tmp_path / "job.pickle"
     job.write_bytes(cloudpickle.dumps((spec(), str(out), dict(kw, simulate=slow_engine))))
-    code = ("import pickle, sys; from fencesweep import sweep; "
+    code = ("import pickle, sys; from fencesweep.study import sweep; "
             "spec, out, kw = pickle.loads(open(sys.argv[1], 'rb').read()); sweep.run_sweep(spec, out, **kw)")
     return [sys.executable, "-c", code, str(job)]
 
@@ -518,7 +522,7 @@ def test_cli_grid_too_large_for_memory_counts_and_stops_before_it_starts(tmp_pat
     def never(*a, **k):
         raise AssertionError("planned a spec too large to plan")
 
-    monkeypatch.setattr(sweep, "available_memory", lambda: 16 * 2**30)
+    monkeypatch.setattr(resources, "available_memory", lambda: 16 * 2**30)
     monkeypatch.setattr(sweep, "make_plan", never)
     path, out = tmp_path / "huge.yaml", tmp_path / "huge.parquet"
     path.write_text(textwrap.dedent(HUGE))
@@ -543,9 +547,9 @@ def test_cli_grid_too_large_for_memory_counts_and_stops_before_it_starts(tmp_pat
 
 def test_plan_size_limit_follows_the_memory_available(tmp_path, monkeypatch):
     sp = spec()  # 2 cases x 2 x 5 x 2 = 40 scenes
-    monkeypatch.setattr(sweep, "available_memory", lambda: 40 * sweep.PLAN_BYTES_PER_SCENE)
+    monkeypatch.setattr(resources, "available_memory", lambda: 40 * sweep.PLAN_BYTES_PER_SCENE)
     assert sweep.plan_size_problem(sp) is None and sweep.make_plan(sp).n_scenes == 40
-    monkeypatch.setattr(sweep, "available_memory", lambda: 39 * sweep.PLAN_BYTES_PER_SCENE)
+    monkeypatch.setattr(resources, "available_memory", lambda: 39 * sweep.PLAN_BYTES_PER_SCENE)
     msg = sweep.plan_size_problem(sp)
     assert "at most 39 scenes" in msg and "one spec per value of cases gives 2 specs of 20 scenes" in msg
     with pytest.raises(UsageError, match="expands to 40 scenes"):
@@ -553,7 +557,7 @@ def test_plan_size_limit_follows_the_memory_available(tmp_path, monkeypatch):
     with pytest.raises(UsageError, match="expands to 40 scenes"):
         run(tmp_path)
     assert list(tmp_path.iterdir()) == []
-    monkeypatch.setattr(sweep, "available_memory", lambda: None)  # unknown: no limit
+    monkeypatch.setattr(resources, "available_memory", lambda: None)  # unknown: no limit
     assert sweep.plan_size_problem(sp) is None
 
 
@@ -643,7 +647,8 @@ def test_a_cycle_sweep_never_imports_pandas(tmp_path):
         chunk_size: 2
     """))
     out = tmp_path / "s.parquet"
-    code = (f"import sys\nfrom fencesweep import sweep\nsweep.run_sweep({str(spec_path)!r}, {str(out)!r}, jobs=1)\n"
+    code = (f"import sys\nfrom fencesweep.study import specfile, sweep\n"
+            f"sweep.run_sweep(specfile.load({str(spec_path)!r}), {str(out)!r}, jobs=1)\n"
             f"print('pandas' in sys.modules)")
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert res.stdout.strip().splitlines()[-1] == "False"

@@ -28,8 +28,9 @@ from typing import Any, Callable
 
 import numpy as np
 
-from . import envelope as E
-from . import params as P
+from fencesweep.study import envelope as E
+from fencesweep.model import params as P
+from fencesweep.study import spec as S
 
 OBJECTIVES = ("max_min_margin", "min_worst_overload")
 SECTION_KEYS = ("variables", "constraints", "objective", "optimizer", "verify", "compare", "output", "digits",
@@ -237,10 +238,8 @@ def evaluate(spec, point: dict, loads: list, simulate: Callable | None = None):
     RESULT_COLUMNS."""
     import pandas as pd
 
-    from . import spec as S
-
     if simulate is None:
-        from .api import simulate_resolved as simulate
+        from fencesweep.model.simulate import simulate_resolved as simulate
     names = spec.envelope.names
     entry = spec.cases[0]
     rows = []
@@ -261,9 +260,7 @@ def stream_check(spec, point: dict, loads: list, limits: E.Limits) -> dict | Non
     varies more than the load's parameters, or the element cannot run a stream (drive free)."""
     import pandas as pd
 
-    from . import api
-    from . import spec as S
-
+    from fencesweep.model import simulate as api
     names = spec.envelope.names
     if any(n not in P.LOAD_NAMES for n in names):
         return None
@@ -443,7 +440,7 @@ def run_design(spec, jobs: int = 1, progress: bool = False, out_dir: str | Path 
     recommendation (the JSON's content)."""
     import pandas as pd
 
-    from . import store
+    from fencesweep.study import store
 
     cfg = spec.design
     out = Path(out_dir or cfg.output)
@@ -522,7 +519,7 @@ def _status(verified: dict, found: Found) -> str:
 
 
 def _recommendation(spec, cfg, found, on_sample, verified, moved, loads, skipped, seconds) -> dict:
-    from . import store
+    from fencesweep.study import store
 
     fixed = dict(spec.params, **spec.cases[0]["params"])
     margins = {k.removeprefix("margin_"): _plain(verified[k]) for k in E.MARGINS}

@@ -22,16 +22,14 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from ..jit import allocating, kernel
+from fencesweep.kernel.jit import allocating, kernel
 
-from .. import integrate as I
-from .. import layout as Lp
-from .. import numerics as NU
-from .. import results as Rs
-from .contacts import N_SLOTS
-from .cycle import (A_EXITED, A_QMAX, A_STATUS, A_T_EXIT, IW_EDGE, IW_MODE, IW_RIDE, N_ACC,
-                    N_AUX, N_IW, N_Q, N_STATE, apply_contact_change, classify, drop_load, fence_free_of_load,
-                    fence_state, finish, quantities_from_aux, record, rhs, run, start, swing_amplitude)
+from fencesweep.kernel import integrate as I
+from fencesweep.model import layout as Lp
+from fencesweep.kernel import numerics as NU
+from fencesweep.model import results as Rs
+from fencesweep.model.scenes.contacts import N_SLOTS
+from fencesweep.model.scenes.cycle import A_EXITED, A_QMAX, A_STATUS, A_T_EXIT, IW_EDGE, IW_MODE, IW_RIDE, N_ACC, N_AUX, N_IW, N_Q, N_STATE, apply_contact_change, classify, drop_load, fence_free_of_load, fence_state, finish, quantities_from_aux, record, rhs, run, start, swing_amplitude
 
 
 @kernel(inline="always")

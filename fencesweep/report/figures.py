@@ -1,7 +1,7 @@
 """Figures: the paper's Figs 2-8 recomputed, B2 x K2 design maps, one cycle in frames.
 
 `fencesweep plot [NAME ...]` draws PNGs into <results>/figures/ from the sweep tables and
-trajectories in <results>/ (fencesweep.report lists which: TABLES, TRAJECTORIES). Drawing
+trajectories in <results>/ (fencesweep.report.document lists which: TABLES, TRAJECTORIES). Drawing
 only: no physics here; every number comes from a Parquet file the engine wrote.
 
     fencesweep plot trajectories     # run the single cycles the figures need (engine)
@@ -14,13 +14,12 @@ backend), so this module imports without it.
 """
 from __future__ import annotations
 
-import argparse
 import math
 from pathlib import Path
 
 import numpy as np
 
-from . import report as RP
+from fencesweep.report import analysis as RP
 
 DPI = 110
 DRIVE_COLORS = {"rigid": "#1f77b4", "flexible": "#d62728", "free": "#2ca02c"}
@@ -457,7 +456,7 @@ def fig7(res: Path, out: Path) -> Path:
 
 # ---------------------------------------------------------------------------- geometry helpers (drawing)
 def _outline(L, A, x, y, phi):
-    from .params import load_corners
+    from fencesweep.model.params import load_corners
 
     cs = load_corners(L, A, phi)
     return np.array([[x + a, y + b] for a, b in cs] + [[x + cs[0][0], y + cs[0][1]]])
@@ -704,7 +703,7 @@ def recommended(res: Path, out: Path) -> Path:
                 continue
             df = RP.read_traj(res, f"{case}_{tag}")
             p, rs = df.attrs["params"], df.attrs["results"]
-            from .params import relative_damping
+            from fencesweep.model.params import relative_damping
 
             label = (f"{what}: B2 = {p['B2']:g}, K2 = {p['K2']:g} (Psi = {relative_damping(p['B2'], p['K2'], p['I2']):.2f})"
                      f"; overload {rs['overload']:.3f}, residual amplitude {math.degrees(rs['residual_amplitude']):.2f} deg")
@@ -750,41 +749,37 @@ def recommended(res: Path, out: Path) -> Path:
 STREAM_ELEMENTS = (("paper 72/570", dict(B2=72.0, K2=570.0), "#d62728", "-"),
                    ("two-case pick 15/2075", dict(B2=15.0, K2=2075.0), "#1a9850", "-"),
                    ("well-damped 140/2075", dict(B2=140.0, K2=2075.0), "#4575b4", "--"))
-STREAM_FIGURE_CYCLES = 10
-STREAM_FIGURE_TC = (1.36, 1.0)  # [s] the work cycle times of the figure's two panels (T = t_c)
-
-
 def stream(res: Path, out: Path) -> Path:
     """Deflection over 10 back-to-back cycles (MODEL.md §14) at T = t_c, alternating loads."""
-    from .api import simulate_resolved
-    from .params import resolve
+    from fencesweep.model.simulate import simulate_resolved
+    from fencesweep.model.params import resolve
 
     plt = _plt()
-    loads = ["small_far", "long_near"] * (STREAM_FIGURE_CYCLES // 2)
+    loads = ["small_far", "long_near"] * (RP.STREAM_FIGURE_CYCLES // 2)
     fig, axes = plt.subplots(2, 1, figsize=(13, 7.5), layout="constrained")
-    for ax, tc in zip(axes, STREAM_FIGURE_TC):
+    for ax, tc in zip(axes, RP.STREAM_FIGURE_TC):
         for label, params, color, ls in STREAM_ELEMENTS:
             r, df = simulate_resolved(resolve("stream", loads=loads, t_c=tc, period=tc, **params), trajectory=True)
             amp = math.degrees(r["worst_start_amplitude"])
             ax.plot(df["t"], np.degrees(df["alpha"] - df["alpha_w"]), color=color, ls=ls, lw=1.1,
                     label=f"{label}\nworst overload {r['worst_overload']:.3f}\nlargest start amplitude {amp:.2f} deg\n"
                           f"{r['n_scraped']}/{r['n_cycles']} scraped")
-        for k in range(STREAM_FIGURE_CYCLES + 1):
+        for k in range(RP.STREAM_FIGURE_CYCLES + 1):
             ax.axvline(k * tc, color="0.6", lw=0.6, ls=":")
         lo, hi = ax.get_ylim()
         ax.set_ylim(lo, hi + 0.12 * (hi - lo))  # a band at the top for the loads' names, above the curves
-        for k in range(STREAM_FIGURE_CYCLES):
+        for k in range(RP.STREAM_FIGURE_CYCLES):
             ax.text((k + 0.5) * tc, 0.98, "small_far" if k % 2 == 0 else "long_near",
                     transform=ax.get_xaxis_transform(), ha="center", va="top", fontsize=7, color="0.35")
         ax.axhline(0, color="k", lw=0.6)
-        ax.set_xlim(0, STREAM_FIGURE_CYCLES * tc)
+        ax.set_xlim(0, RP.STREAM_FIGURE_CYCLES * tc)
         ax.set_xlabel("time t [s] (dotted: the start of each cycle, t_k = k T)")
         ax.set_ylabel("deflection alpha - alpha_w [deg]")
         ax.set_title(f"t_c = T = {tc:g} s ({3600 / tc:.0f} packages/h), the load of each cycle at the top",
                      fontsize=9)
         ax.grid(alpha=0.3)
         ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7, frameon=False)
-    fig.suptitle(f"The fence over {STREAM_FIGURE_CYCLES} cycles back to back, the state of the element carried over "
+    fig.suptitle(f"The fence over {RP.STREAM_FIGURE_CYCLES} cycles back to back, the state of the element carried over "
                  f"(scene stream), v = 2 m/s, m2 = 5 kg; the rigid fence has no deflection")
     return _save(fig, out, "stream_deflection.png")
 
@@ -948,51 +943,3 @@ def plot(names, res: Path = Path("results"), out: Path | None = None,
         got = fn(res, out, residual_max_deg) if n == "maps" else fn(res, out)
         paths += got if isinstance(got, list) else [got]
     return paths
-
-
-def add_plot_parser(sub) -> argparse.ArgumentParser:
-    """Register `fencesweep plot` on the CLI's subparsers."""
-    what = list(FIGURES) + ["all", "trajectories", "report"]
-    g = sub.add_parser(
-        "plot", help="draw the paper's figures and the design maps (PNG) from the results tables",
-        description="Draw figures into RESULTS/figures/ from the sweep tables and trajectories in RESULTS "
-                    "(needs matplotlib: pip install 'fencesweep[plot]'). 'trajectories' runs the single cycles "
-                    "the figures need; 'report' writes RESULTS/REPORT.md. Figures: "
-                    + "; ".join(f"{k}: {v[1]}" for k, v in FIGURES.items()))
-    g.add_argument("what", nargs="*", default=["all"], choices=what, metavar="NAME",
-                   help=f"one or more of: {', '.join(what)} (default: all)")
-    g.add_argument("--results", default="results", metavar="DIR",
-                   help="directory of the tables and trajectories (default: results)")
-    g.add_argument("--out", default=None, metavar="DIR", help="where the PNGs go (default: RESULTS/figures)")
-    g.add_argument("--residual-max", type=float, default=RP.RESIDUAL_MAX_DEG, metavar="DEG",
-                   help=f"residual amplitude [deg] under which the fence counts as home for the next cycle "
-                        f"(design maps, report; default {RP.RESIDUAL_MAX_DEG:g})")
-    g.set_defaults(func=cmd_plot)
-    return g
-
-
-def cmd_plot(args: argparse.Namespace) -> int:
-    import sys
-
-    res = Path(args.results)
-    what = args.what or ["all"]
-    try:
-        if "trajectories" in what:
-            RP.make_trajectories(res, residual_max_deg=args.residual_max)
-            what = [w for w in what if w != "trajectories"]
-            if not what:
-                return 0
-        report = "report" in what
-        what = [w for w in what if w != "report"]
-        if what:
-            for p in plot(what, res, args.out, args.residual_max):
-                print(p)
-        if report:
-            print(RP.write_report(res, args.residual_max))
-    except RP.MissingInput as exc:
-        print(f"fencesweep: error: {exc}", file=sys.stderr)
-        return 2
-    except ImportError as exc:
-        print(f"fencesweep: error: {exc}; install the plotting extra: pip install 'fencesweep[plot]'", file=sys.stderr)
-        return 2
-    return 0

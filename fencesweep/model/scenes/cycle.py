@@ -28,18 +28,16 @@ from __future__ import annotations
 
 import math
 
-from ..jit import kernel
+from fencesweep.kernel.jit import kernel
 
-from .. import integrate as I
-from .. import layout as Lp
-from .. import numerics as NU
-from .. import results as Rs
-from ..contact import belt_friction, pulse_time
-from ..drive import drive_angle
-from .contacts import (APART, CLIPPED, N_SLOTS, PUSH, RAIL0, TIP, next_code, corner_fence_force,
-                       corner_fence_geometry, corner_rail_force, tip_edge_choice, tip_edge_force, tip_edge_normal,
-                       tip_gap, tip_local)
-from .load import corner_motion, initial_state, outcome_margin
+from fencesweep.kernel import integrate as I
+from fencesweep.model import layout as Lp
+from fencesweep.kernel import numerics as NU
+from fencesweep.model import results as Rs
+from fencesweep.model.contact import belt_friction, pulse_time
+from fencesweep.model.drive import drive_angle
+from fencesweep.model.scenes.contacts import APART, CLIPPED, N_SLOTS, PUSH, RAIL0, TIP, next_code, corner_fence_force, corner_fence_geometry, corner_rail_force, tip_edge_choice, tip_edge_force, tip_edge_normal, tip_gap, tip_local
+from fencesweep.model.scenes.load import corner_motion, initial_state, outcome_margin
 
 N_STATE = 13
 N_CTRL = 8  # components that events and peaks read from the dense output (the energies are not)

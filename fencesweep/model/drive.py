@@ -10,11 +10,11 @@ import math
 from functools import lru_cache
 
 import numpy as np
-from .jit import kernel
+from fencesweep.kernel.jit import kernel
 
-from . import layout as Lp
-from ._cache import solved
-from .integrate import hermite_basis
+from fencesweep.model import layout as Lp
+from fencesweep.kernel.cache import solved
+from fencesweep.kernel.integrate import hermite_basis
 
 
 @kernel()

@@ -9,9 +9,9 @@ force) or CLIPPED (penetrating with the Kelvin force <= 0: N = 0, MODEL.md §4).
 from __future__ import annotations
 
 
-from ..jit import kernel
+from fencesweep.kernel.jit import kernel
 
-from ..contact import coulomb, kelvin_force
+from fencesweep.model.contact import coulomb, kelvin_force
 
 APART, PUSH, CLIPPED = 0, 1, 2
 N_SLOTS = 9

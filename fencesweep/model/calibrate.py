@@ -11,8 +11,8 @@ from functools import lru_cache
 
 import numpy as np
 
-from . import layout as Lp
-from ._cache import solved
+from fencesweep.model import layout as Lp
+from fencesweep.kernel.cache import solved
 
 #: tolerance of the calibration's impacts: e(q) to ~1e-10, far below the 2e-4 of MODEL.md §4
 CALIBRATION_TOL = 1e-12
@@ -20,8 +20,8 @@ CALIBRATION_TOL = 1e-12
 
 def restitution(c: float, law: str) -> float:
     """e of the dimensionless rigid-wall impact with damping c (module docstring)."""
-    from .results import N_IMPACT_RESULTS, RJ_E_EFF
-    from .scenes.impact import impact_kernel
+    from fencesweep.model.results import N_IMPACT_RESULTS, RJ_E_EFF
+    from fencesweep.model.scenes.impact import impact_kernel
 
     p = np.zeros(Lp.N_P)
     p[Lp.LAW] = Lp.LAW_HERTZ if law == "hertz" else Lp.LAW_LINEAR

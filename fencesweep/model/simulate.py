@@ -9,8 +9,11 @@ from typing import Any
 
 import numpy as np
 
-from . import params as P
-from .results import N_CYCLE_RESULTS, N_IMPACT_RESULTS, unpack
+from fencesweep import resources
+from fencesweep.errors import ParameterError
+
+from fencesweep.model import params as P
+from fencesweep.model.results import N_CYCLE_RESULTS, N_IMPACT_RESULTS, unpack
 
 
 def simulate(scene: str = "cycle", case: str | None = None, **params: Any) -> dict:
@@ -47,15 +50,15 @@ def simulate_resolved(vals: dict, trajectory: bool = False):
     stage and the energy integrals (damper, contact damping, drive work, belt work, contact
     friction).
     """
-    from .setup import prepare, run_freefall
+    from fencesweep.model.prepare import prepare, run_freefall
 
     p = prepare(vals)
     scene = vals["scene"]
     if scene == "stream":
         return _stream(p, vals, trajectory)
     if scene == "cycle":
-        from .scenes.cycle import TRAJ_COLUMNS, TRAJ_UNITS
-        from .scenes.stream import cycle_kernel
+        from fencesweep.model.scenes.cycle import TRAJ_COLUMNS, TRAJ_UNITS
+        from fencesweep.model.scenes.stream import cycle_kernel
 
         out = np.empty(N_CYCLE_RESULTS)
         traj = np.empty((TRAJECTORY_ROWS if trajectory else 0, len(TRAJ_COLUMNS)))
@@ -75,7 +78,7 @@ def simulate_resolved(vals: dict, trajectory: bool = False):
         df["stage"] = df["stage"].astype("int8")  # 0 S1, 1 S2, 2 S3, 3 S4, 4 rail, -1 after exit
         df.attrs["units"] = dict(zip(TRAJ_COLUMNS, TRAJ_UNITS))
         return res, df
-    from .scenes.impact import impact_kernel
+    from fencesweep.model.scenes.impact import impact_kernel
 
     out = np.empty(N_IMPACT_RESULTS)
     if scene == "freefall":
@@ -92,10 +95,7 @@ STREAM_BYTES_PER_CYCLE = 2048
 
 def check_stream_memory(n_cycles: int) -> None:
     """A stream whose per-cycle results would not fit in the memory available is bad input."""
-    from .params import ParameterError
-    from .sweep import available_memory
-
-    avail = available_memory()
+    avail = resources.available_memory()
     if avail is not None and n_cycles * STREAM_BYTES_PER_CYCLE > 0.5 * avail:
         most = int(0.5 * avail // STREAM_BYTES_PER_CYCLE)
         raise ParameterError(f"n_cycles = {n_cycles} is too large for the memory here: its per-cycle results need "
@@ -106,10 +106,10 @@ def check_stream_memory(n_cycles: int) -> None:
 def _stream(p: np.ndarray, vals: dict, trajectory: bool):
     """A stream (MODEL.md §14): (results dict with "cycles", trajectory DataFrame or None); the
     trajectory has the columns of a cycle's plus `cycle`, t from the stream's start."""
-    from .results import N_STREAM_CYCLE_RESULTS, stream_results
-    from .scenes.cycle import TRAJ_COLUMNS, TRAJ_UNITS
-    from .scenes.stream import stream_kernel
-    from .setup import load_table
+    from fencesweep.model.results import N_STREAM_CYCLE_RESULTS, stream_results
+    from fencesweep.model.scenes.cycle import TRAJ_COLUMNS, TRAJ_UNITS
+    from fencesweep.model.scenes.stream import stream_kernel
+    from fencesweep.model.prepare import load_table
 
     n = int(vals["n_cycles"])
     check_stream_memory(n)

@@ -18,13 +18,13 @@ import hashlib
 import json
 import math
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 import yaml
 
-from . import params as P
+from fencesweep.model import params as P
+from fencesweep.study import envelope as E
 
 #: derived inputs: name -> (unit, meaning). Psi fixes K2 from B2 and I2 (MODEL.md §3).
 DERIVED_INPUTS = {"Psi": ("-", "relative damping B2 / (2 sqrt(K2 I2)); fixes K2 = (B2 / (2 Psi))^2 / I2")}
@@ -53,8 +53,8 @@ def _round(x: float) -> float:
 
 # ----------------------------------------------------------------------------------------
 # YAML with duplicate keys rejected (PyYAML silently keeps the last one)
-class _Loader(yaml.SafeLoader):
-    pass
+class YamlLoader(yaml.SafeLoader):
+    """PyYAML's safe loader with duplicate keys rejected."""
 
 
 def _construct_mapping(loader, node, deep=False):
@@ -68,7 +68,7 @@ def _construct_mapping(loader, node, deep=False):
     return yaml.SafeLoader.construct_mapping(loader, node, deep=deep)
 
 
-_Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
+YamlLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
 
 
 # ----------------------------------------------------------------------------------------
@@ -336,7 +336,9 @@ def _check_case_name(name: Any, where: str) -> str:
 
 
 def parse(data: Any, source: str = "", path: str | None = None) -> Spec:
-    """A spec from its parsed YAML (a dict). Raises SpecError on anything wrong."""
+    """A spec from its parsed YAML (a dict), all but its `design:` and `sensitivity:` sections,
+    which their modules parse (specfile.parse reads a whole spec). Raises SpecError on anything
+    wrong."""
     scene, case = _scene_and_case(data)
     base = {}
     for name, value in _mapping(data.get("params"), "params", "parameter: value").items():
@@ -352,7 +354,6 @@ def parse(data: Any, source: str = "", path: str | None = None) -> Spec:
     sp = Spec(scene=scene, case=case, params=base, axes=axes, cases=cases, output=output,
               invalid=invalid, chunk_size=chunk, description=desc, source=source, path=path,
               loads=_loads(data.get("loads"), scene), envelope=env)
-    _sections(data, sp)
     return sp
 
 
@@ -495,27 +496,10 @@ def _options(data: dict) -> tuple:
     return output, invalid, chunk, desc
 
 
-def _sections(data: dict, sp: Spec) -> None:
-    """The `design:` and `sensitivity:` sections, parsed by their modules."""
-    try:
-        if data.get("design") is not None:
-            from . import design as D
-
-            sp.design = D.parse_section(data["design"], sp)
-        if data.get("sensitivity") is not None:
-            from . import sensitivity as SA
-
-            sp.sensitivity = SA.parse_section(data["sensitivity"], sp)
-    except P.ParameterError as exc:
-        raise SpecError(str(exc)) from None
-
-
 def _envelope(raw: Any, scene: str, case: str | None, base: dict, cases: list, origin: dict):
-    """The spec's `envelope:` (fencesweep.envelope), its loads checked against every entry of cases."""
+    """The spec's `envelope:` (fencesweep.study.envelope), its loads checked against every entry of cases."""
     if raw is None:
         return None
-    from . import envelope as E
-
     if scene != "cycle":  # a stream's table has a row per cycle: its per-design-point judge is not written yet
         raise SpecError(f"envelope is given with scene = {scene!r}: an envelope of loads needs scene: cycle "
                         f"(for loads back to back, fencesweep design runs each element's loads as a stream)")
@@ -562,24 +546,3 @@ def _loads(raw: Any, scene: str) -> list | None:
     except P.ParameterError as exc:
         raise SpecError(str(exc)) from None
     return [dict(e) if isinstance(e, dict) else e for e in raw]
-
-
-def loads(text: str, path: str | None = None) -> Spec:
-    """A spec from YAML text."""
-    try:
-        data = yaml.load(text, Loader=_Loader)
-    except SpecError:
-        raise
-    except yaml.YAMLError as exc:
-        raise SpecError(f"{path or 'spec'}: not valid YAML: {exc}") from None
-    return parse(data, source=text, path=path)
-
-
-def load(path: str | Path) -> Spec:
-    """A spec from a YAML file."""
-    p = Path(path)
-    try:
-        text = p.read_text()
-    except OSError as exc:
-        raise SpecError(f"cannot read spec {str(path)!r}: {exc.strerror}") from None
-    return loads(text, path=str(path))

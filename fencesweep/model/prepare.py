@@ -11,12 +11,12 @@ from functools import lru_cache
 
 import numpy as np
 
-from . import layout as Lp
-from . import numerics as NU
-from .calibrate import damping_coefficient
-from .contact import derived_k_lin, mean_footprint_radius
-from .drive import TABLE_SIZE, max_drive_rate, rocker_table
-from .integrate import METHOD_DOPRI5, METHOD_RK4
+from fencesweep.model import layout as Lp
+from fencesweep.kernel import numerics as NU
+from fencesweep.model.calibrate import damping_coefficient
+from fencesweep.model.contact import derived_k_lin, mean_footprint_radius
+from fencesweep.model.drive import TABLE_SIZE, max_drive_rate, rocker_table
+from fencesweep.kernel.integrate import METHOD_DOPRI5, METHOD_RK4
 
 _LAW = {"hertz": Lp.LAW_HERTZ, "linear": Lp.LAW_LINEAR}
 _DRIVE = {"flexible": Lp.DRIVE_FLEXIBLE, "rigid": Lp.DRIVE_RIGID, "free": Lp.DRIVE_FREE}
@@ -27,7 +27,7 @@ _METHOD = {"dopri5": METHOD_DOPRI5, "rk4": METHOD_RK4}
 
 def run_freefall(p: np.ndarray, out: np.ndarray) -> None:
     """The free fall of MODEL.md §7 into out (IMPACT_RESULTS)."""
-    from .scenes.freefall import freefall_kernel
+    from fencesweep.model.scenes.freefall import freefall_kernel
 
     freefall_kernel(p, out)
 
@@ -36,7 +36,7 @@ def run_freefall(p: np.ndarray, out: np.ndarray) -> None:
 def freefall_force(m1: float, k1: float, e: float, law: str, k_lin: float | None, H: float) -> float:
     """Peak of N when the load falls from H onto an undeformable surface (MODEL.md §7), at the
     default tolerance whatever a cycle's step_factor (the reference of its overload)."""
-    from .results import N_IMPACT_RESULTS, RJ
+    from fencesweep.model.results import N_IMPACT_RESULTS, RJ
 
     vals = {"m1": m1, "k1": k1, "e": e, "contact_law": law, "k_lin": k_lin, "H": H, "step_factor": 1.0,
             "integrator": "dopri5", "dt": None}
@@ -120,7 +120,7 @@ def load_table(vals: dict) -> np.ndarray:
     """The kernel's loads table of a stream (MODEL.md §14): one row per cycle, the entries of
     the parameter vector that belong to that cycle's load (layout.LOAD_SLOTS), each distinct
     load prepared once. Without a list of loads every cycle has the scene's load."""
-    from .params import LOAD_NAMES
+    from fencesweep.model.params import LOAD_NAMES
 
     slots = list(Lp.LOAD_SLOTS)
     n = int(vals["n_cycles"])

@@ -6,9 +6,9 @@ solved from e lives in calibrate.py (it runs the impact scene).
 from __future__ import annotations
 
 import math
-from .jit import kernel
+from fencesweep.kernel.jit import kernel
 
-from . import layout as Lp
+from fencesweep.model import layout as Lp
 
 
 @kernel(inline="always")

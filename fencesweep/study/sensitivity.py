@@ -15,8 +15,9 @@ from typing import Any, Callable
 
 import numpy as np
 
-from . import envelope as E
-from . import params as P
+from fencesweep.study import envelope as E
+from fencesweep.model import params as P
+from fencesweep.study import spec as S
 
 OUTPUTS = ("worst_overload", "worst_deflection_max", "worst_residual_amplitude", "min_margin")
 SECTION_KEYS = ("inputs", "n", "seed", "outputs", "output")
@@ -86,7 +87,7 @@ def _salib():
         from SALib.analyze import sobol as analyze
         from SALib.sample import sobol as sample
     except ImportError:
-        from .errors import UsageError
+        from fencesweep.errors import UsageError
 
         raise UsageError("fencesweep sensitivity needs SALib: pip install 'fencesweep[sensitivity]' "
                          "(or pip install SALib)") from None
@@ -99,8 +100,6 @@ def problem(cfg: dict) -> dict:
 
 def sample_spec(spec, cfg: dict):
     """The spec of the runs: the Saltelli sample as a zip axis, crossed with the envelope."""
-    from . import spec as S
-
     sample, _ = _salib()
     X = sample.sample(problem(cfg), cfg["n"], calc_second_order=False, seed=cfg["seed"])
     names = tuple(cfg["bounds"])
@@ -120,7 +119,7 @@ def run(spec, jobs: int | None = None, progress: bool = False, out: str | Path |
     import pandas as pd
     import pyarrow as pa
 
-    from . import store, sweep
+    from fencesweep.study import store, sweep
 
     cfg = spec.sensitivity
     _, analyze = _salib()

@@ -27,8 +27,8 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from . import params as P
-from . import results as R
+from fencesweep.model import params as P
+from fencesweep.model import results as R
 
 COMPRESSION = "zstd"
 META_PREFIX = "fencesweep."
@@ -46,7 +46,7 @@ _STR = {"outcome", "status"}
 def source_hash() -> str:
     """sha256 over the package's Python sources: a changed engine never reuses old chunks."""
     h = hashlib.sha256()
-    root = Path(__file__).resolve().parent
+    root = Path(__file__).resolve().parents[1]  # the package
     for f in sorted(root.rglob("*.py")):
         h.update(f.relative_to(root).as_posix().encode() + b"\0" + f.read_bytes() + b"\0")
     return h.hexdigest()
@@ -56,7 +56,7 @@ def versions() -> dict:
     """Versions that a table records (fencesweep, its source hash, numba, numpy, pyarrow, python)."""
     from importlib import metadata
 
-    from . import __version__
+    from fencesweep import __version__
 
     try:  # from the installed metadata: importing numba here would cost a quarter second
         numba_version = metadata.version("numba")

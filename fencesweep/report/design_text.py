@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import envelope as E
+from fencesweep.study import envelope as E
 
 
 def _deg(x: float) -> str:
@@ -19,7 +19,7 @@ def _deg(x: float) -> str:
 
 
 def _load_text(load: dict) -> str:
-    from .params import BY_NAME
+    from fencesweep.model.params import BY_NAME
 
     parts = []
     for k, v in load.items():
@@ -94,7 +94,7 @@ def _region(res: Path, rec: dict) -> list:
              + ", ".join(f"{k} at {v} elements" for k, v in binds.items()) + "."]
     two = res / "b2k2.parquet"
     if two.exists():
-        from . import report as RP
+        from fencesweep.report import analysis as RP
 
         D = RP.design(pd.read_parquet(two), math.degrees(rec["constraints"]["residual_amplitude"]))
         both = pd.DataFrame({"B2": np.tile(D.B2, len(D.K2)), "K2": np.repeat(D.K2, len(D.B2)),
@@ -200,7 +200,7 @@ def _whole_width(res: Path, rec: dict) -> list:
 def _window(res: Path) -> list:
     import pandas as pd
 
-    from .plots_design import element_label
+    from fencesweep.report.design_figures import element_label
 
     pts = pd.read_parquet(res / "window_points.parquet")
     tc, v = np.sort(pts["t_c"].unique()), np.sort(pts["v"].unique())
@@ -225,7 +225,7 @@ def _window(res: Path) -> list:
 def _sensitivity(res: Path) -> list:
     import pandas as pd
 
-    from . import store
+    from fencesweep.study import store
 
     df = pd.read_parquet(res / "sensitivity.parquet")
     meta = store.read_metadata(res / "sensitivity.parquet")
@@ -267,11 +267,11 @@ def _tolerance(res: Path) -> list:
     """The five elements over the envelope widened by trigger-timing and orientation tolerances."""
     import pandas as pd
 
-    from .plots_design import element_label
+    from fencesweep.report.design_figures import element_label
 
     pts = pd.read_parquet(res / "tolerance_points.parquet")
     per = pd.read_parquet(res / "tolerance.parquet", columns=["R_s", "phi0", "outcome"])
-    from .store import read_metadata
+    from fencesweep.study.store import read_metadata
 
     meta_env = read_metadata(res / "tolerance_points.parquet")["envelope"]["dims"]
     rs, ph = meta_env["R_s"], meta_env["phi0"]

@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from . import params as P
+from fencesweep.model import params as P
 
 SAMPLE_KEYS = ("corners", "sobol", "lhs", "seed", "invalid")
 ACROSS = "across"
@@ -380,7 +380,7 @@ def write_points(spec, table_path, limits: Limits | None = None):
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    from . import store
+    from fencesweep.study import store
 
     env = spec.envelope
     limits = limits or spec_limits(spec)

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import math
 
-from .jit import kernel
+from fencesweep.kernel.jit import kernel
 
 METHOD_DOPRI5, METHOD_RK4 = 0, 1
 N_STAGES = 7  # stage vectors kept per step (DOPRI5: 6 + the FSAL stage f(t + h, y1))

@@ -14,10 +14,11 @@ import json
 import os
 from pathlib import Path
 
-_PKG = Path(__file__).resolve().parent
-_KERNEL_SOURCES = ("jit.py", "layout.py", "results.py", "numerics.py", "contact.py", "drive.py", "integrate.py",
-                   "scenes/load.py", "scenes/contacts.py", "scenes/cycle.py", "scenes/stream.py", "scenes/impact.py",
-                   "scenes/freefall.py")
+_PKG = Path(__file__).resolve().parents[1]  # the package
+_KERNEL_SOURCES = ("kernel/jit.py", "model/layout.py", "model/results.py", "kernel/numerics.py", "model/contact.py",
+                   "model/drive.py", "kernel/integrate.py", "model/scenes/load.py", "model/scenes/contacts.py",
+                   "model/scenes/cycle.py", "model/scenes/stream.py", "model/scenes/impact.py",
+                   "model/scenes/freefall.py")
 _STAMP = _PKG / "__pycache__" / "kernels.sha256"
 #: values solved once per input by root finding (calibrate.damping_coefficient,
 #: drive.crank_rocker_geometry): without them a process imports scipy.optimize (0.3 s) and runs

@@ -50,10 +50,11 @@ from typing import Callable, Iterable, Iterator
 
 import numpy as np
 
-from . import params as P
-from . import spec as S
-from . import store
-from .errors import UsageError
+from fencesweep.model import params as P
+from fencesweep.study import spec as S
+from fencesweep.study import store
+from fencesweep import resources
+from fencesweep.errors import UsageError
 
 #: chunk size rule: chunks of about CHUNK_SECONDS of work, at least MIN_CHUNKS of them.
 #: A chunk costs ~0.6-2 ms of dispatch and ~2-15 ms to write (benchmarks/sweep_dispatch.py),
@@ -165,22 +166,6 @@ def _params_path(work: Path, block: int) -> Path:
 PLAN_BYTES_PER_SCENE = 160
 
 
-def available_memory() -> int | None:
-    """Bytes of memory available for planning: Linux's MemAvailable, else the physical memory
-    (None if neither is known: no limit is applied then)."""
-    try:
-        with open("/proc/meminfo") as fh:
-            for line in fh:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        pass
-    try:
-        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
-    except (AttributeError, OSError, ValueError):
-        return None
-
-
 def _gib(n_bytes: float) -> str:
     return f"{n_bytes / 2**30:,.1f} GiB"
 
@@ -188,7 +173,7 @@ def _gib(n_bytes: float) -> str:
 def plan_size_problem(spec: S.Spec) -> str | None:
     """Why `spec` is too large to plan in this machine's memory (its scene count, the limit and
     what to do), or None. Counts only: nothing proportional to the scenes is allocated."""
-    n, avail = spec.n_scenes, available_memory()
+    n, avail = spec.n_scenes, resources.available_memory()
     if avail is None or n * PLAN_BYTES_PER_SCENE <= avail:
         return None
     most = avail // PLAN_BYTES_PER_SCENE
@@ -277,7 +262,7 @@ def unused_axes(spec: S.Spec) -> list:
 
 # ------------------------------------------------------------------------------ running
 def _engine() -> Callable:
-    from . import api
+    from fencesweep.model import simulate as api
 
     return api.simulate_resolved
 
@@ -658,13 +643,13 @@ def _compute(plan: Plan, spec: S.Spec, work: Path, pending: list, done: list, jo
     return stats
 
 
-def run_sweep(spec: S.Spec | str | Path, out: str | Path | None = None, jobs: int | None = None,  # noqa: C901 (16)
+def run_sweep(spec: S.Spec, out: str | Path | None = None, jobs: int | None = None,  # noqa: C901 (16)
               resume: bool = True, backend: str = "loky", scheduler: str | None = None,
               progress: bool = False, simulate: Callable | None = None, plan: Plan | None = None,
               log: Callable[[str], None] | None = None, serial_below: float | None = None,
               overwrite: bool = False) -> Outcome:
     """Run a sweep and write its table. `simulate(vals, trajectory=False) -> (results, None)`
-    defaults to fencesweep.api.simulate_resolved (tests pass a fake). A local sweep whose
+    defaults to fencesweep.model.simulate.simulate_resolved (tests pass a fake). A local sweep whose
     remaining work is estimated below `serial_below` seconds (default SERIAL_BELOW) runs
     in this process: starting workers would cost more than it saves. `log` receives the
     notes a user should see (skipped scenes, unused axes, resuming). Without `overwrite`,
@@ -673,7 +658,7 @@ def run_sweep(spec: S.Spec | str | Path, out: str | Path | None = None, jobs: in
     t0 = time.perf_counter()
     log = log or (lambda msg: None)
     if not isinstance(spec, S.Spec):
-        spec = S.load(spec)
+        raise TypeError(f"run_sweep takes a spec.Spec (specfile.load reads one from YAML), not {spec!r}")
     out = Path(out) if out is not None else default_output(spec)
     check_can_start(spec, out, overwrite)  # before anything is made or removed
     if jobs is None:
@@ -842,12 +827,3 @@ def describe_plan(plan: Plan, out: Path) -> list:
     for axis in unused_axes(spec):
         lines.append(f"  note: {axis} is not used by scene {spec.scene}; its values all give the same run")
     return lines
-
-
-def __getattr__(name: str):
-    """The grid command's parser and handler moved to fencesweep.cli (kept importable from here)."""
-    if name in ("add_grid_parser", "cmd_grid"):
-        from . import cli
-
-        return getattr(cli, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -14,13 +14,13 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from ..jit import allocating, kernel
+from fencesweep.kernel.jit import allocating, kernel
 
-from .. import integrate as I
-from .. import layout as Lp
-from .. import numerics as NU
-from .. import results as Rs
-from ..contact import kelvin_force, pulse_time
+from fencesweep.kernel import integrate as I
+from fencesweep.model import layout as Lp
+from fencesweep.kernel import numerics as NU
+from fencesweep.model import results as Rs
+from fencesweep.model.contact import kelvin_force, pulse_time
 
 N_STATE = 5
 IW_RIGID, IW_FREE = 0, 1

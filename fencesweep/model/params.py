@@ -16,11 +16,9 @@ from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any
 
+from fencesweep.errors import ParameterError
+
 SCENES = ("cycle", "impact", "freefall", "stream")
-
-
-class ParameterError(ValueError):
-    """Bad user input: names the parameter, the value and what is allowed."""
 
 
 @dataclass(frozen=True)

@@ -3,11 +3,11 @@ speed v_H = sqrt(2 g H), rigid wall, 1 DOF, no gravity during the contact. Its p
 the permitted dynamic load that a cycle's overload is measured against."""
 from __future__ import annotations
 
-from ..jit import kernel
+from fencesweep.kernel.jit import kernel
 
-from .. import layout as Lp
-from ..contact import drop_speed
-from .impact import impact_kernel
+from fencesweep.model import layout as Lp
+from fencesweep.model.contact import drop_speed
+from fencesweep.model.scenes.impact import impact_kernel
 
 
 @kernel()

@@ -1,0 +1,1 @@
+"""The integrator contract and Numba's set-up: no physics here."""

@@ -1,0 +1,1 @@
+"""Presentation: tables computed from results, the markdown report, figures."""
