@@ -18,6 +18,8 @@ import pytest
 from fencesweep.model import params as P
 from fencesweep.report import analysis as RP
 from fencesweep.report import document as DOC
+from fencesweep.report import fig5a_text as F5A
+from fencesweep.report import maps_text as MT
 from fencesweep.study import store
 
 pytest.importorskip("matplotlib")
@@ -228,9 +230,9 @@ def test_escape_causes_read_off_the_row():
             dict(base, v=2.4, t_first_contact=(xt - 0.01) / 2.4),           # corner 1 cm short of it
             dict(base, v=1.0, t_first_contact=0.5, contact_time=0.2),       # B = 0.7 > t_c / 2
             dict(base, v=1.0, t_first_contact=0.3)]                         # none of these
-    got = DOC.escape_cause(pd.DataFrame(rows)).tolist()
+    got = F5A.escape_cause(pd.DataFrame(rows)).tolist()
     assert got == ["", "no_contact", "free", "tip", "at_tip", "late", "other"]
-    assert set(got) - {""} <= set(DOC.ESCAPE_CAUSES)
+    assert set(got) - {""} <= set(F5A.ESCAPE_CAUSES)
 
 
 def test_jump_is_explained_only_when_the_corner_passes_the_tip(results, tmp_path):
@@ -256,9 +258,9 @@ def test_jump_is_explained_only_when_the_corner_passes_the_tip(results, tmp_path
 
 
 def test_residual_reason_is_computed():
-    text = DOC.residual_reason(1.0, 15.0, 1.2, 0.1)
+    text = MT.residual_reason(1.0, 15.0, 1.2, 0.1)
     assert "6.7% of the permitted deflection (15 deg)" in text and "21 mm off the rail line" in text
-    assert "42 mm" in DOC.residual_reason(2.0, 15.0, 1.2, 0.1)
+    assert "42 mm" in MT.residual_reason(2.0, 15.0, 1.2, 0.1)
 
 
 def test_report_reads_where_the_worst_placements_peak(results, tmp_path):

@@ -91,7 +91,7 @@ def test_design_figures_are_drawn(res, tmp_path):
 
 
 def test_section_2_points_to_the_envelope_recommendation_only_when_there_is_one(tmp_path):
-    from fencesweep.report.document import _envelope_pointer
+    from fencesweep.report.maps_text import _envelope_pointer
 
     assert _envelope_pointer(tmp_path) == []
     (tmp_path / "design").mkdir()

@@ -234,7 +234,7 @@ def test_cli_prints_the_cycles_and_the_summary_and_writes_the_whole_series(tmp_p
 
 
 def test_the_shortest_safe_period_is_the_one_from_which_every_longer_period_is_safe():
-    from fencesweep.report.document import shortest_safe_period
+    from fencesweep.report.stream_text import shortest_safe_period
 
     g = pd.DataFrame({"period": [1.0, 1.1, 1.2, 1.3], "ok": [True, False, True, True]})
     assert shortest_safe_period(g) == 1.2
