@@ -340,7 +340,7 @@ MIN_STAGE = 2e-3        # [s] runs of one stage shorter than this are merged (st
 #: sweep tables of the paper's worst-case arrangement of Fig. 5a (§4.1): one per cut of the figure
 WORST_TABLES = {"fig5a_worst_v": "v", "fig5a_worst_tc": "t_c"}
 
-#: the stream figure (fencesweep.report.figures.stream) and the report's reading of it
+#: the stream figure (fencesweep.report.figures_cycle.stream) and the report's reading of it
 STREAM_FIGURE_CYCLES = 10
 STREAM_FIGURE_TC = (1.36, 1.0)  # [s] the work cycle times of the figure's two panels (T = t_c)
 
