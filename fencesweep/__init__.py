@@ -6,10 +6,6 @@ try:  # the version lives in one place, pyproject.toml; the installed metadata c
 except _metadata.PackageNotFoundError:  # a source tree on sys.path, never installed
     __version__ = "0+unknown"
 
-from fencesweep.kernel.cache import invalidate_stale_kernels
-
-invalidate_stale_kernels()  # before any kernel module is imported
-
 from fencesweep.model.params import CASES, ParameterError, resolve
 from fencesweep.model.simulate import simulate, simulate_resolved
 

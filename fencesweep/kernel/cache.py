@@ -1,56 +1,124 @@
-"""Keep Numba's on-disk cache (cache=True) consistent with the kernel sources, and keep the
-values solved once per input (`solved`) beside it.
+"""Where the compiled kernels are kept, and what a first run on a machine must know about them.
 
-Numba keys a cached function on its own source file only; the cycle kernel inlines helpers
-from drive.py and contact.py, so an edit there would leave a stale compiled kernel. At
-import we hash every kernel source; when the hash differs from the one stored beside the
-cache, the package's cache files are removed and Numba recompiles once; the solved values
-(which the kernels compute) are removed with them.
+Numba caches a compiled function (cache=True) beside its source file and checks it against that
+one file only: a kernel that calls a helper of another file stays stale when only the helper
+changed. Here every kernel function of the package is cached in one directory of its own,
+
+    <base>/fencesweep-<hash>/<sub-package path>/...
+
+with <hash> a digest of every kernel source (kernel/ and model/, where any compiled function
+or a constant it reads lives) and <base> Numba's NUMBA_CACHE_DIR when it is set, else the
+package's __pycache__ when it is writable, else the user's cache directory. An edited
+source gives a new directory: nothing stale is ever loaded, and nothing needs deleting (an old
+directory is left for another checkout that may still use it). `KernelLocator` tells Numba so;
+it is registered before any kernel is compiled (kernel/jit.py imports this module).
+
+The same directory keeps
+  * the values solved once per input by root finding (`solved`: the contact damping from e,
+    the crank-rocker geometry), which without it every process would solve again;
+  * a marker per entry point compiled (`is_warm` / `mark_warm`), so that a first run can say
+    that it compiles before it does (`compiling`);
+  * the compile lock (`compiling`): one process compiles a cold kernel, another started at the
+    same time waits for it and loads the result (two processes writing one cache at once can
+    crash Numba).
 """
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import os
+import sys
+import tempfile
 from pathlib import Path
 
-_PKG = Path(__file__).resolve().parents[1]  # the package
-_KERNEL_SOURCES = ("kernel/jit.py", "model/layout.py", "model/results.py", "kernel/numerics.py", "model/contact.py",
-                   "model/drive.py", "kernel/integrate.py", "model/scenes/load.py", "model/scenes/contacts.py",
-                   "model/scenes/cycle.py", "model/scenes/stream.py", "model/scenes/impact.py",
-                   "model/scenes/freefall.py")
-_STAMP = _PKG / "__pycache__" / "kernels.sha256"
-#: values solved once per input by root finding (calibrate.damping_coefficient,
-#: drive.crank_rocker_geometry): without them a process imports scipy.optimize (0.3 s) and runs
-#: the calibration's impacts before its first cycle, once in every sweep worker
-SOLVED = _PKG / "__pycache__" / "solved.json"
-_solved: dict | None = None
+from numba.core import caching, config
+
+PKG = Path(__file__).resolve().parents[1]  # the package
+#: the sub-packages whose sources a compiled kernel can include
+KERNEL_PACKAGES = ("kernel", "model")
+
+
+def _kernel_sources() -> list[Path]:
+    return sorted(p for d in KERNEL_PACKAGES for p in (PKG / d).rglob("*.py"))
 
 
 def kernel_hash() -> str:
+    """sha256 over the kernel sources (their paths and bytes)."""
     h = hashlib.sha256()
-    for name in _KERNEL_SOURCES:
-        h.update(name.encode())
-        h.update((_PKG / name).read_bytes())
+    for path in _kernel_sources():
+        h.update(path.relative_to(PKG).as_posix().encode() + b"\0" + path.read_bytes() + b"\0")
     return h.hexdigest()
 
 
-def invalidate_stale_kernels() -> None:
-    """Remove cached kernels compiled from other sources than the present ones."""
+HASH = kernel_hash()
+
+
+def _writable(path: Path) -> bool:
     try:
-        digest = kernel_hash()
-        if _STAMP.exists() and _STAMP.read_text().strip() == digest:
-            return
-        for pattern in ("*.nbi", "*.nbc"):
-            for f in _PKG.rglob(pattern):
-                f.unlink(missing_ok=True)
-        SOLVED.unlink(missing_ok=True)
-        _STAMP.parent.mkdir(exist_ok=True)
-        tmp = _STAMP.with_suffix(f".{os.getpid()}.tmp")
-        tmp.write_text(digest)
-        os.replace(tmp, _STAMP)
-    except OSError:  # a read-only install: nothing to invalidate, nothing we can write
-        pass
+        path.mkdir(parents=True, exist_ok=True)
+        tempfile.TemporaryFile(dir=path).close()
+        return True
+    except OSError:
+        return False
+
+
+def _base() -> Path:
+    """NUMBA_CACHE_DIR, else the package's __pycache__ if writable, else the user's cache directory."""
+    if config.CACHE_DIR:
+        return Path(config.CACHE_DIR)
+    here = PKG / "__pycache__"
+    if _writable(here):
+        return here
+    return Path(os.environ.get("XDG_CACHE_HOME") or "~/.cache").expanduser() / "fencesweep"
+
+
+DIR = _base() / f"fencesweep-{HASH[:16]}"
+
+
+class KernelLocator(caching._CacheLocator):
+    """Numba's cache locator for the package's kernels (module docstring): their cache files go
+    to DIR, under the path of their module, and are valid while the kernel hash is."""
+
+    def __init__(self, py_func, py_file):
+        self._lineno = py_func.__code__.co_firstlineno
+        self._path = DIR / Path(py_file).resolve().relative_to(PKG).parent
+
+    def get_cache_path(self):
+        return str(self._path)
+
+    def get_source_stamp(self):
+        return HASH
+
+    def get_disambiguator(self):
+        return str(self._lineno)
+
+    @classmethod
+    def from_function(cls, py_func, py_file):
+        try:
+            Path(py_file).resolve().relative_to(PKG)
+        except ValueError:  # not a function of this package: Numba's own locators decide
+            return None
+        self = cls(py_func, py_file)
+        try:
+            self.ensure_cache_path()
+        except OSError:  # nowhere to write: Numba's own locators (or no cache) then
+            return None
+        return self
+
+
+def _register() -> None:
+    impl = getattr(caching, "CacheImpl", None) or caching._CacheImpl
+    if KernelLocator not in impl._locator_classes:
+        impl._locator_classes.insert(0, KernelLocator)
+
+
+_register()
+
+
+# ------------------------------------------------------------------ values solved once
+SOLVED = DIR / "solved.json"
+_solved: dict | None = None
 
 
 def solved(name: str, key: tuple, solve):
@@ -71,10 +139,62 @@ def solved(name: str, key: tuple, solve):
     v = solve()
     _solved[k] = list(v) if isinstance(v, tuple) else v
     try:
-        SOLVED.parent.mkdir(exist_ok=True)
+        SOLVED.parent.mkdir(parents=True, exist_ok=True)
         tmp = SOLVED.with_suffix(f".{os.getpid()}.tmp")
         tmp.write_text(json.dumps(_solved))
         os.replace(tmp, SOLVED)
     except OSError:
         pass
     return v
+
+
+# ------------------------------------------------------------------ first runs
+#: entry points known to be compiled in this process (checked on disk once per process)
+_warm: set = set()
+#: seconds a cold compile of each group of entry points took on a 2-core machine
+#: (benchmarks/startup.py, results/startup.md): what the first run announces
+COMPILE_SECONDS = {"cycle": 15, "impact": 3}
+
+
+def _marker(name: str) -> Path:
+    return DIR / f"compiled-{name}"
+
+
+def is_warm(name: str) -> bool:
+    """Are the entry points of `name` in the cache (a process loads them instead of compiling)?"""
+    if name not in _warm and _marker(name).exists():
+        _warm.add(name)
+    return name in _warm
+
+
+def mark_warm(name: str) -> None:
+    _warm.add(name)
+    with contextlib.suppress(OSError):
+        _marker(name).touch()
+
+
+@contextlib.contextmanager
+def compiling(name: str, say=None):
+    """Around the first call of the entry points of `name` in a process: when they are not in
+    the cache yet, say so on stderr (or to `say`), and compile under a lock so that a process
+    started at the same time waits and then loads them; when they are, nothing."""
+    if is_warm(name):
+        yield
+        return
+    say = say or (lambda msg: print(msg, file=sys.stderr, flush=True))
+    lock = None
+    with contextlib.suppress(ImportError, OSError):
+        from filelock import FileLock
+
+        DIR.mkdir(parents=True, exist_ok=True)
+        lock = FileLock(str(DIR / "compile.lock"))
+        lock.acquire()
+    try:
+        if not is_warm(name):  # another process may have compiled them while this one waited
+            say(f"fencesweep: compiling the {name} kernels (first run on this machine, about "
+                f"{COMPILE_SECONDS.get(name, 10)} s; later runs load them from {DIR})")
+        yield
+        mark_warm(name)
+    finally:
+        if lock is not None:
+            lock.release()

@@ -6,12 +6,12 @@ solved from e lives in calibrate.py (it runs the impact scene).
 from __future__ import annotations
 
 import math
-from fencesweep.kernel.jit import kernel
+from fencesweep.kernel.jit import kernel, python_callable
 
 from fencesweep.model import layout as Lp
 
 
-@kernel(inline="always")
+@kernel(inline=True)
 def kelvin_force(D, Dd, kc, cd, law):
     """Unclipped normal force N and its elastic part N_el [N] for penetration D >= 0 [m] and
     rate Dd [m/s] (the sign of N says whether the contact pushes, MODEL.md §4).
@@ -27,21 +27,21 @@ def kelvin_force(D, Dd, kc, cd, law):
     return n_el + cd * Dd, n_el
 
 
-@kernel(inline="always")
+@kernel(inline=True)
 def normal_force(D, Dd, kc, cd, law):
     """Normal force N := max(kelvin_force, 0) (no adhesion, MODEL.md §4) and N_el [N]."""
     n, n_el = kelvin_force(D, Dd, kc, cd, law)
     return max(n, 0.0), n_el
 
 
-@kernel(inline="always")
+@kernel(inline=True)
 def coulomb(N, w, mu, eps):
     """Regularised Coulomb friction force [N] against the slip w [m/s] (MODEL.md §5):
     -mu N w / sqrt(w^2 + eps^2)."""
     return -mu * N * w / math.sqrt(w * w + eps * eps)
 
 
-@kernel(inline="always")
+@kernel(inline=True)
 def belt_friction(ux, uy, om, fmax, mmax, rho, eps):
     """Goyal-Ruina ellipse (paper eq. A9, MODEL.md §6): slip u = (ux, uy) [m/s], spin om [rad/s].
 
@@ -70,7 +70,7 @@ def hertz_peak(m1: float, k1: float, v0: float) -> float:
 
 def hertz_contact_time(m1: float, k1: float, v0: float) -> float:
     """Undamped Hertz contact duration [s]: 3.2181 (m1^2 / (k1^2 v0))^0.2 (MODEL.md §7)."""
-    return float(pulse_time(Lp.LAW_HERTZ, m1, k1, v0))
+    return float(python_callable(pulse_time)(Lp.LAW_HERTZ, m1, k1, v0))
 
 
 @kernel()
@@ -82,8 +82,7 @@ def pulse_time(law, m, kc, speed):
     return math.pi * math.sqrt(m / kc)
 
 
-@kernel()
-def drop_speed(H):
+def drop_speed(H: float) -> float:
     """v_H = sqrt(2 g H) [m/s] (MODEL.md §7)."""
     return math.sqrt(2.0 * Lp.G * H)
 

@@ -10,11 +10,10 @@ import math
 from functools import lru_cache
 
 import numpy as np
-from fencesweep.kernel.jit import kernel
+from fencesweep.kernel.jit import entry, kernel, python_callable
 
 from fencesweep.model import layout as Lp
 from fencesweep.kernel.cache import solved
-from fencesweep.kernel.integrate import hermite_basis
 
 
 @kernel()
@@ -43,7 +42,17 @@ def rocker_angle(theta, a, b, d):
     return beta, dbeta
 
 
-@kernel(inline="always")
+@kernel(inline=True)
+def hermite_basis(s, h):
+    """Weights of y0, h f0, y1, h f1 (the last two scaled by h) in the cubic Hermite
+    interpolant at fraction s of an interval of size h: h00 = 2s^3 - 3s^2 + 1,
+    h10 = s^3 - 2s^2 + s, h01 = -2s^3 + 3s^2, h11 = s^3 - s^2 (the drive table's interpolant)."""
+    s2 = s * s
+    s3 = s2 * s
+    return 2.0 * s3 - 3.0 * s2 + 1.0, (s3 - 2.0 * s2 + s) * h, -2.0 * s3 + 3.0 * s2, (s3 - s2) * h
+
+
+@kernel(inline=True)
 def drive_angle(t, p):
     """alpha_w(t) [rad] and its rate [rad/s] (MODEL.md §2); at rest for t < 0 and t > t_c.
 
@@ -74,7 +83,7 @@ def drive_angle(t, p):
     return aw, db * om
 
 
-@kernel()
+@entry()
 def fill_rocker_table(a, b, d, theta0, beta0, out):
     """Tabulate beta(theta) - beta0, beta', beta'' at theta0 + 2 pi i / n, i = 0..n
     (out has 3 (n + 1) entries; beta'' by a central difference of the exact beta')."""
@@ -109,7 +118,7 @@ def rocker_table(swing: float, coupler_ratio: float) -> np.ndarray:
 
 
 def _beta_unwrapped(theta: float, a: float, b: float, d: float, ref: float) -> float:
-    beta = rocker_angle(theta, a, b, d)[0]
+    beta = python_callable(rocker_angle)(theta, a, b, d)[0]
     return ref + math.remainder(beta - ref, 2 * math.pi)
 
 
@@ -125,19 +134,20 @@ def solve_crank_rocker_geometry(swing: float, coupler_ratio: float) -> tuple[flo
     """crank_rocker_geometry: the minimum of the rocker angle by Brent's method on its derivative."""
     from scipy.optimize import brentq
 
+    angle = python_callable(rocker_angle)
     a = math.sin(swing / 2)
     b = coupler_ratio
     d = math.sqrt(b * b + math.cos(swing / 2) ** 2)
-    ref = rocker_angle(0.0, a, b, d)[0]
+    ref = angle(0.0, a, b, d)[0]
     n = 720
     thetas = [2 * math.pi * i / n for i in range(n)]
     vals = [_beta_unwrapped(th, a, b, d, ref) for th in thetas]
     i = min(range(n), key=vals.__getitem__)
     h = 2 * math.pi / n
     # the minimum is the root of d beta / d theta bracketed by the grid neighbours
-    theta0 = brentq(lambda th: rocker_angle(th, a, b, d)[1], thetas[i] - h, thetas[i] + h,
+    theta0 = brentq(lambda th: angle(th, a, b, d)[1], thetas[i] - h, thetas[i] + h,
                     xtol=1e-15, rtol=1e-15)
-    beta0 = rocker_angle(theta0, a, b, d)[0]
+    beta0 = angle(theta0, a, b, d)[0]
     return a, b, d, theta0, beta0
 
 

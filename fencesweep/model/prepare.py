@@ -16,20 +16,13 @@ from fencesweep.kernel import numerics as NU
 from fencesweep.model.calibrate import damping_coefficient
 from fencesweep.model.contact import derived_k_lin, mean_footprint_radius
 from fencesweep.model.drive import TABLE_SIZE, max_drive_rate, rocker_table
-from fencesweep.kernel.integrate import METHOD_DOPRI5, METHOD_RK4
+from fencesweep.kernel.rk import METHOD_DOPRI5, METHOD_RK4
 
 _LAW = {"hertz": Lp.LAW_HERTZ, "linear": Lp.LAW_LINEAR}
 _DRIVE = {"flexible": Lp.DRIVE_FLEXIBLE, "rigid": Lp.DRIVE_RIGID, "free": Lp.DRIVE_FREE}
 _PROFILE = {"crank_rocker": Lp.PROFILE_CRANK_ROCKER, "harmonic": Lp.PROFILE_HARMONIC}
 
 _METHOD = {"dopri5": METHOD_DOPRI5, "rk4": METHOD_RK4}
-
-
-def run_freefall(p: np.ndarray, out: np.ndarray) -> None:
-    """The free fall of MODEL.md §7 into out (IMPACT_RESULTS)."""
-    from fencesweep.model.scenes.freefall import freefall_kernel
-
-    freefall_kernel(p, out)
 
 
 @lru_cache(maxsize=4096)
@@ -43,7 +36,9 @@ def freefall_force(m1: float, k1: float, e: float, law: str, k_lin: float | None
     p = _contact_part(vals)
     _numerics(p, vals)
     out = np.empty(N_IMPACT_RESULTS)
-    run_freefall(p, out)
+    from fencesweep.model.scenes.freefall import freefall
+
+    freefall(p, out)
     return float(out[RJ["peak_force"]])
 
 

@@ -43,49 +43,88 @@ TRAJECTORY_ROWS = 4096
 def simulate_resolved(vals: dict, trajectory: bool = False):
     """Run an already-resolved parameter set (params.resolve).
 
-    Returns (results dict, trajectory DataFrame or None). The trajectory (cycle only) has
-    the columns of scenes.cycle.TRAJ_COLUMNS (units in df.attrs["units"]), one row per
+    Returns (results dict, trajectory DataFrame or None). The trajectory (cycle and stream) has
+    the columns of scenes.cycle.layout.TRAJ_COLUMNS (units in df.attrs["units"]), one row per
     integrator step and event: time, load pose and velocities, alpha, alpha_w, alpha_dot (the
     fence's rate), fence and rail normal forces, the moment of the load on the fence, the
     stage and the energy integrals (damper, contact damping, drive work, belt work, contact
-    friction).
+    friction). A first run on a machine compiles the scene's kernels and says so on stderr
+    (kernel/cache.py `compiling`).
     """
-    from fencesweep.model.prepare import prepare, run_freefall
+    from fencesweep.kernel import cache
+    from fencesweep.model.prepare import prepare
 
-    p = prepare(vals)
     scene = vals["scene"]
-    if scene == "stream":
-        return _stream(p, vals, trajectory)
-    if scene == "cycle":
-        from fencesweep.model.scenes.cycle import TRAJ_COLUMNS, TRAJ_UNITS
-        from fencesweep.model.scenes.stream import cycle_kernel
+    with cache.compiling("cycle" if scene in ("cycle", "stream") else "impact"):
+        p = prepare(vals)
+        if scene == "stream":
+            return _stream(p, vals, trajectory)
+        if scene == "cycle":
+            return _cycle(p, vals, trajectory)
+        return _impact(p, vals)
 
-        out = np.empty(N_CYCLE_RESULTS)
-        traj = np.empty((TRAJECTORY_ROWS if trajectory else 0, len(TRAJ_COLUMNS)))
-        rows = cycle_kernel(p, out, traj)
-        res = unpack("cycle", out)
-        if not trajectory:
-            return res, None
-        if rows > traj.shape[0]:  # the buffer was too short: run again with the count it needed
-            traj = np.empty((rows, len(TRAJ_COLUMNS)))
-            rows = cycle_kernel(p, out, traj)
-            if rows > traj.shape[0]:  # a trajectory is never silently short
-                raise RuntimeError(f"the cycle kernel produced {rows} trajectory rows when rerun with the "
-                                   f"{traj.shape[0]} its first run needed: it is not deterministic")
-        import pandas as pd
 
-        df = pd.DataFrame(traj[:rows], columns=list(TRAJ_COLUMNS))
-        df["stage"] = df["stage"].astype("int8")  # 0 S1, 1 S2, 2 S3, 3 S4, 4 rail, -1 after exit
-        df.attrs["units"] = dict(zip(TRAJ_COLUMNS, TRAJ_UNITS))
-        return res, df
+def _impact(p: np.ndarray, vals: dict):
+    """An impact or a free fall (MODEL.md §8, §7): (results dict, None)."""
+    from fencesweep.model.scenes.freefall import freefall
     from fencesweep.model.scenes.impact import impact_kernel
 
     out = np.empty(N_IMPACT_RESULTS)
-    if scene == "freefall":
-        run_freefall(p, out)
+    if vals["scene"] == "freefall":
+        freefall(p, out)
     else:
-        impact_kernel(p, vals["drive"] == "rigid", vals["drive"] == "free", vals["w"], out)
-    return unpack(scene, out), None
+        impact_kernel(p, vals["drive"] == "rigid", vals["drive"] == "free", float(vals["w"]), out)
+    return unpack(vals["scene"], out), None
+
+
+def _run_cycles(p: np.ndarray, loads: np.ndarray, period: float, trajectory: bool) -> tuple:
+    """The cycles' kernel (scenes/stream.py run_cycles) on `loads`: (per-cycle rows, trajectory
+    array or None, the first trajectory row of each cycle). A trajectory buffer found too short
+    is grown to the count the run reported and the run repeated."""
+    from fencesweep.model.results import N_STREAM_CYCLE_RESULTS
+    from fencesweep.model.scenes.cycle.layout import N_TRAJ
+    from fencesweep.model.scenes.stream import run_cycles
+
+    n = loads.shape[0]
+    out = np.empty((n, N_STREAM_CYCLE_RESULTS))
+    starts = np.empty(n + 1, np.int64)
+    traj = np.empty((TRAJECTORY_ROWS * n if trajectory else 0, N_TRAJ))
+    rows = run_cycles(p, loads, period, out, traj, starts)
+    if not trajectory:
+        return out, None, starts
+    if rows > traj.shape[0]:  # the buffer was too short: run again with the count it needed
+        traj = np.empty((rows, N_TRAJ))
+        if run_cycles(p, loads, period, out, traj, starts) > traj.shape[0]:  # never silently short
+            raise RuntimeError(f"the cycle kernel produced more than the {rows} trajectory rows its first run "
+                               f"needed when rerun: it is not deterministic")
+    return out, traj[:rows], starts
+
+
+def _trajectory_frame(traj: np.ndarray, starts: np.ndarray | None):
+    """A trajectory array as a DataFrame (with a `cycle` column for a stream's)."""
+    import pandas as pd
+
+    from fencesweep.model.scenes.cycle.layout import TRAJ_COLUMNS, TRAJ_UNITS
+
+    df = pd.DataFrame(traj, columns=list(TRAJ_COLUMNS))
+    df["stage"] = df["stage"].astype("int8")  # 0 S1, 1 S2, 2 S3, 3 S4, 4 rail, -1 after exit
+    units = dict(zip(TRAJ_COLUMNS, TRAJ_UNITS))
+    if starts is not None:
+        n = len(starts) - 1
+        df.insert(0, "cycle", np.repeat(np.arange(n, dtype=np.int64), np.diff(starts)))
+        units = {"cycle": "-", **units}
+    df.attrs["units"] = units
+    return df
+
+
+def _cycle(p: np.ndarray, vals: dict, trajectory: bool):
+    """One work cycle (MODEL.md §8 `cycle`): a stream of one. (results dict, trajectory or None)."""
+    from fencesweep.model import layout as Lp
+
+    loads = np.ascontiguousarray(p[list(Lp.LOAD_SLOTS)][None, :])
+    out, traj, _ = _run_cycles(p, loads, float(p[Lp.TC]), trajectory)
+    res = unpack("cycle", out[0, :N_CYCLE_RESULTS])
+    return res, (_trajectory_frame(traj, None) if trajectory else None)
 
 
 #: bytes per cycle of a stream held at once: the kernel's row and its load, the DataFrame of
@@ -106,29 +145,11 @@ def check_stream_memory(n_cycles: int) -> None:
 def _stream(p: np.ndarray, vals: dict, trajectory: bool):
     """A stream (MODEL.md §14): (results dict with "cycles", trajectory DataFrame or None); the
     trajectory has the columns of a cycle's plus `cycle`, t from the stream's start."""
-    from fencesweep.model.results import N_STREAM_CYCLE_RESULTS, stream_results
-    from fencesweep.model.scenes.cycle import TRAJ_COLUMNS, TRAJ_UNITS
-    from fencesweep.model.scenes.stream import stream_kernel
     from fencesweep.model.prepare import load_table
+    from fencesweep.model.results import stream_results
 
-    n = int(vals["n_cycles"])
-    check_stream_memory(n)
-    loads = load_table(vals)
-    out = np.empty((n, N_STREAM_CYCLE_RESULTS))
-    starts = np.empty(n + 1, np.int64)
-    traj = np.empty((TRAJECTORY_ROWS * n if trajectory else 0, len(TRAJ_COLUMNS)))
-    rows = stream_kernel(p, loads, float(vals["period"]), out, traj, starts)
-    res = stream_results(out, float(vals["period"]))
-    if not trajectory:
-        return res, None
-    if rows > traj.shape[0]:  # the buffer was too short: run again with the count it needed
-        traj = np.empty((rows, len(TRAJ_COLUMNS)))
-        if stream_kernel(p, loads, float(vals["period"]), out, traj, starts) > traj.shape[0]:
-            raise RuntimeError("the stream kernel produced more trajectory rows when rerun: it is not deterministic")
-    import pandas as pd
-
-    df = pd.DataFrame(traj[:rows], columns=list(TRAJ_COLUMNS))
-    df["stage"] = df["stage"].astype("int8")
-    df.insert(0, "cycle", np.repeat(np.arange(n, dtype=np.int64), np.diff(starts)))
-    df.attrs["units"] = dict(zip(("cycle",) + TRAJ_COLUMNS, ("-",) + TRAJ_UNITS))
-    return res, df
+    check_stream_memory(int(vals["n_cycles"]))
+    period = float(vals["period"])
+    out, traj, starts = _run_cycles(p, load_table(vals), period, trajectory)
+    res = stream_results(out, period)
+    return res, (_trajectory_frame(traj, starts) if trajectory else None)

@@ -19,7 +19,7 @@ RAIL0 = 4
 TIP = 8
 
 
-@kernel(inline="always")
+@kernel(inline=True)
 def next_code(cur, D, Dd, in_span, kc, cd, law, d_gap, d_force):
     """The slot's code at penetration D and rate Dd, from its code `cur` (MODEL.md §4: PUSH
     while the Kelvin force is > 0, CLIPPED while it is <= 0 with D > 0). An apart slot enters
@@ -42,7 +42,7 @@ def next_code(cur, D, Dd, in_span, kc, cd, law, d_gap, d_force):
 
 # ---------------- corner-fence (MODEL.md §5.1) ----------------
 
-@kernel(inline="always")
+@kernel(inline=True)
 def corner_fence_geometry(gx, gy, gvx, gvy, ca, sa, dal, sg):
     """s = G.d along the fence, D = -sigma h (h = G.n), D' = -sigma (v_G.n - alpha' s)."""
     s = gx * ca + gy * sa
@@ -50,7 +50,7 @@ def corner_fence_geometry(gx, gy, gvx, gvy, ca, sa, dal, sg):
     return s, -sg * h, -sg * ((-gvx * sa + gvy * ca) - dal * s)
 
 
-@kernel(inline="always")
+@kernel(inline=True)
 def corner_fence_force(rx, ry, gvx, gvy, s, D, Dd, sg, ca, sa, kc, cd, law, mu2, eps, push):
     """One corner on the fence: force sigma N n + friction along d on the load, its torque
     about the centroid, the moment -sigma N s on the fence, N, (N - N_el) D' and the friction
@@ -66,7 +66,7 @@ def corner_fence_force(rx, ry, gvx, gvy, s, D, Dd, sg, ca, sa, kc, cd, law, mu2,
 
 # ---------------- corner-rail (MODEL.md §5.3) ----------------
 
-@kernel(inline="always")
+@kernel(inline=True)
 def corner_rail_force(rx, ry, gvx, gvy, gy, kc, cd, law, mu2, eps, push):
     """One corner on the rail (x_G <= 0, y_G < 0): D = -y_G, D' = -y_G'; force (friction, N)
     on the load, its torque, N, (N - N_el) D' and the friction power."""
@@ -80,7 +80,7 @@ def corner_rail_force(rx, ry, gvx, gvy, gy, kc, cd, law, mu2, eps, push):
 
 # ---------------- tip-edge (MODEL.md §5.2) ----------------
 
-@kernel(inline="always")
+@kernel(inline=True)
 def tip_local(tx, ty, x, yy, cphi, sphi):
     """The fence tip T = (tx, ty) in the load's frame, and T - centroid in the world frame."""
     dx = tx - x
@@ -101,7 +101,7 @@ def tip_edge_choice(x, yy, cphi, sphi, tlx, tly, hl, hw):
     return 2 if tly >= 0.0 else 3
 
 
-@kernel(inline="always")
+@kernel(inline=True)
 def tip_edge_normal(edge, tlx, tly, hl, hw, cphi, sphi):
     """Depth D of T below the edge and the edge's outward normal n_e in the world frame."""
     if edge == 0:
@@ -113,7 +113,7 @@ def tip_edge_normal(edge, tlx, tly, hl, hw, cphi, sphi):
     return hw + tly, sphi, -cphi
 
 
-@kernel(inline="always")
+@kernel(inline=True)
 def tip_edge_force(D, nex, ney, tx, ty, dx, dyy, vx, vy, om, dal, kc, cd, law, mu2, eps, push):
     """The tip pushing an edge: force -N n_e + friction along the edge on the load, its torque,
     the reaction's moment on the fence at T (friction included), N, (N - N_el) D', friction
@@ -132,7 +132,7 @@ def tip_edge_force(D, nex, ney, tx, ty, dx, dyy, vx, vy, om, dal, kc, cd, law, m
     return cfx, cfy, dx * cfy - dyy * cfx, ty * cfx - tx * cfy, n, (n - n_el) * Dd, -f * wl, Dd
 
 
-@kernel(inline="always")
+@kernel(inline=True)
 def tip_gap(tlx, tly, tlx_d, tly_d, hl, hw):
     """Signed box distance of T from the load (< 0 inside) and its rate, for the graze check."""
     gx = abs(tlx) - hl

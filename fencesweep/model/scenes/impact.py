@@ -7,31 +7,50 @@ normal, so
   D = y_p - R theta,  m1 y_p'' = -N,  I2 theta'' = N R - B2 theta' - K2 theta.
 The impact ends at the first return of N to 0 after the onset, located on the dense output.
 State: [y_p, y_p', theta, theta', impulse] (theta unused when rigid). The scene `freefall`
-(scenes/freefall.py) is this one on a rigid wall.
+(scenes/freefall.py) is this one on a rigid wall. It integrates with kernel/driver.py's loop,
+as the cycle does: `accept` handles each step (the release, the peak, a failed state).
 """
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 
 import numpy as np
-from fencesweep.kernel.jit import allocating, kernel
 
-from fencesweep.kernel import integrate as I
-from fencesweep.model import layout as Lp
+from fencesweep.kernel import driver
 from fencesweep.kernel import numerics as NU
+from fencesweep.kernel import rk
+from fencesweep.kernel.jit import entry, kernel
+from fencesweep.kernel.search import bisect, peak_max
+from fencesweep.model import layout as Lp
 from fencesweep.model import results as Rs
 from fencesweep.model.contact import kelvin_force, pulse_time
 
 N_STATE = 5
 IW_RIGID, IW_FREE = 0, 1
+# the run's scalars (Work.acc): the peak force so far, the largest penetration, the status, the
+# impact's time scale (its undamped pulse time), and at the release its rebound rate D'
+R_PEAK, R_DMAX, R_STATUS, R_TP, R_REBOUND, N_R = 0, 1, 2, 3, 4, 5
+
+#: an impact's work arrays (allocated by impact_kernel)
+Work = namedtuple("Work", ("y", "y1", "tmp", "dy", "K", "Q", "aux", "iw", "atol", "count", "acc"))
 
 
-@kernel(inline="always")
+@kernel(inline=True)
 def penetration(y, p, rigid):
     """D and D' of the point against the fence point R theta (module docstring)."""
     if rigid:
         return y[0], y[1]
     return y[0] - p[Lp.R] * y[2], y[1] - p[Lp.R] * y[3]
+
+
+@kernel(inline=True)
+def fence_rotation(N, theta, dtheta, p, free):
+    """theta'' of the fence point (paper eq. (A1)_4 with the drive at rest): (N R - B2 theta' -
+    K2 theta) / I2; B2 = K2 = 0 for the free fence."""
+    b2 = 0.0 if free else p[Lp.B2]
+    k2 = 0.0 if free else p[Lp.K2]
+    return (N * p[Lp.R] - b2 * dtheta - k2 * theta) / p[Lp.I2]
 
 
 @kernel()
@@ -46,93 +65,109 @@ def impact_rhs(t, y, p, iw, dy, aux):
     dy[2] = 0.0
     dy[3] = 0.0
     if not rigid:
-        free = iw[IW_FREE] != 0
-        b2 = 0.0 if free else p[Lp.B2]
-        k2 = 0.0 if free else p[Lp.K2]
         dy[2] = y[3]
-        dy[3] = (N * p[Lp.R] - b2 * y[3] - k2 * y[2]) / p[Lp.I2]  # (A1)_4 with the drive at rest
+        dy[3] = fence_rotation(N, y[2], y[3], p, iw[IW_FREE] != 0)
     dy[4] = N
     aux[0] = N
 
 
 @kernel()
-def _force_at(ctx, theta):
-    """The Kelvin force on the dense output (peak_max, and bisect of its return to 0)."""
+def force_at(ctx, theta):
+    """The Kelvin force on the dense output (search.peak_max, and bisect of its return to 0)."""
     y0, Q, p, iw, tmp, dy, aux = ctx
-    I.dense_eval(y0, Q, theta, tmp, N_STATE)
+    rk.dense_eval(y0, Q, theta, tmp, N_STATE)
     impact_rhs(0.0, tmp, p, iw, dy, aux)
     return aux[0]
 
 
 @kernel()
-def _released(ctx, theta):
-    return _force_at(ctx, theta) <= 0.0
+def released(ctx, theta):
+    return force_at(ctx, theta) <= 0.0
 
 
-@allocating()
-def impact_kernel(p, rigid, free, w, out):
-    """Integrate one impact from D = 0, D' = w until N first returns to 0 (the integrator of
-    integrate.py at the tolerance p[TOL]); writes IMPACT_RESULTS into out."""
+@kernel()
+def step_peak(ctx, theta, peak):
+    """The largest force over [0, theta] of the step: an interior maximum (rising just after the
+    start, falling just before theta) by Brent's search, and the value at theta."""
+    d = 1e-3 * theta
+    if force_at(ctx, d) > force_at(ctx, 0.0) and force_at(ctx, theta - d) > force_at(ctx, theta):
+        peak = max(peak, peak_max(force_at, ctx, 0.0, theta, NU.PEAK_TOL)[1])
+    return max(peak, force_at(ctx, theta))
+
+
+@kernel()
+def accept(p, w, t, h, t1, err, h_next):
+    """The impact's handling of an accepted step: the release (N back to 0) located on the dense
+    output, the peak inside the step, a failed state; the driver's hook. At the release w.y1
+    holds the state there."""
+    rk.dense_coeffs(rk.METHOD_DOPRI5, w.K, h, w.y, w.y1, w.Q, N_STATE)
+    ctx = (w.y, w.Q, p, w.iw, w.tmp, w.dy, w.aux)
+    theta = 1.0
+    if released(ctx, 1.0):
+        theta = bisect(released, ctx, 0.0, 1.0, NU.EVENT_TOL * w.acc[R_TP] / h)[1]
+    w.acc[R_PEAK] = step_peak(ctx, theta, w.acc[R_PEAK])
+    rk.dense_eval(w.y, w.Q, theta, w.y1, N_STATE)
+    D1, Dd1 = penetration(w.y1, p, w.iw[IW_RIGID] != 0)
+    w.acc[R_DMAX] = max(w.acc[R_DMAX], D1)
+    if not math.isfinite(D1):
+        w.acc[R_STATUS] = Rs.ST_NONFINITE
+        return t, h_next, True
+    if D1 > 0.5 * min(p[Lp.LL], p[Lp.AA]):
+        w.acc[R_STATUS] = Rs.ST_PENETRATION
+        return t, h_next, True
+    if theta < 1.0:
+        w.acc[R_STATUS] = Rs.ST_OK
+        w.acc[R_REBOUND] = Dd1
+        return t + theta * h, h_next, True
+    for i in range(N_STATE):
+        w.y[i] = w.y1[i]
+        w.K[0, i] = w.K[6, i]
+    return t1, h_next, False
+
+
+@kernel()
+def error_scales(p, w, speed, tp):
+    """atol: the pulse's penetration w tp, the speed w, their angles about the pivot, the
+    impulse m1 w, each times the tolerance p[TOL]."""
+    rr = p[Lp.R] if p[Lp.R] > 0.0 else 1.0  # (a rigid wall has no R)
+    tol = p[Lp.TOL]
+    for i, sc in enumerate((speed * tp, speed, speed * tp / rr, speed / rr, p[Lp.M1] * speed)):
+        w.atol[i] = tol * sc
+
+
+@kernel()
+def write_results(w, t, speed, out):
+    """IMPACT_RESULTS into out (NaN where the run failed before the release)."""
     for i in range(Rs.N_IMPACT_RESULTS):
         out[i] = math.nan
-    y = np.zeros(N_STATE)
-    y1 = np.zeros(N_STATE)
-    tmp = np.zeros(N_STATE)
-    dy = np.zeros(N_STATE)
-    K = np.zeros((I.N_STAGES, N_STATE))
-    Q = np.zeros((4, N_STATE))
-    aux = np.zeros(1)
-    iw = np.array([1 if rigid else 0, 1 if free else 0])
+    if w.acc[R_STATUS] == Rs.ST_OK:
+        out[Rs.RJ_PEAK_FORCE] = w.acc[R_PEAK]
+        out[Rs.RJ_IMPULSE] = w.y1[4]
+        out[Rs.RJ_CONTACT_TIME] = t
+        out[Rs.RJ_E_EFF] = -w.acc[R_REBOUND] / speed
+    out[Rs.RJ_MAX_PENETRATION] = w.acc[R_DMAX]
+    out[Rs.RJ_N_STEPS] = w.count[driver.C_STEPS]
+    out[Rs.RJ_STATUS] = w.acc[R_STATUS]
+
+
+@entry()
+def impact_kernel(p, rigid, free, speed, out):
+    """Integrate one impact from D = 0, D' = speed until N first returns to 0 (kernel/driver.py
+    at the tolerance p[TOL]); writes IMPACT_RESULTS into out."""
+    n = N_STATE
+    w = Work(np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros((rk.N_STAGES, n)), np.zeros((4, n)),
+             np.zeros(1), np.array([1 if rigid else 0, 1 if free else 0]), np.empty(n), np.zeros(driver.N_COUNT),
+             np.zeros(N_R))
     m = p[Lp.M1] if rigid else 1.0 / (1.0 / p[Lp.M1] + p[Lp.R] ** 2 / p[Lp.I2])
-    tp = pulse_time(p[Lp.LAW], m, p[Lp.KC], w)
-    tol = p[Lp.TOL]
-    rr = p[Lp.R] if p[Lp.R] > 0.0 else 1.0  # (a rigid wall has no R)
-    atol = np.empty(N_STATE)  # scales: the pulse's penetration w tp, the speed w, the impulse m1 w
-    for i, sc in enumerate((w * tp, w, w * tp / rr, w / rr, p[Lp.M1] * w)):
-        atol[i] = tol * sc
-    y[1] = w
-    impact_rhs(0.0, y, p, iw, K[0], aux)
-    peak = aux[0]  # the linear law jumps to b w at contact
-    half_side = 0.5 * min(p[Lp.LL], p[Lp.AA])
-    t, h, dmax, status, steps = 0.0, 1e-3 * tp, 0.0, Rs.ST_MAXSTEPS, 0
-    while steps < NU.MAX_STEPS:
-        err = I.take_step(I.METHOD_DOPRI5, impact_rhs, t, y, h, p, iw, K, tmp, y1, aux, atol, tol, N_STATE)
-        if not (err <= 1.0):
-            h = I.next_step(h, err, NU.SAFETY, NU.FAC_MIN, 1.0) if err == err else NU.FAC_MIN * h
-            if h < NU.H_MIN * tp:
-                status = Rs.ST_UNDERFLOW
-                break
-            continue
-        steps += 1
-        I.dense_coeffs(I.METHOD_DOPRI5, K, h, y, y1, Q, N_STATE)
-        ctx = (y, Q, p, iw, tmp, dy, aux)
-        theta = 1.0
-        if _released(ctx, 1.0):
-            theta = I.bisect(_released, ctx, 0.0, 1.0, NU.EVENT_TOL * tp / h)[1]
-        d = 1e-3 * theta
-        if _force_at(ctx, d) > _force_at(ctx, 0.0) and _force_at(ctx, theta - d) > _force_at(ctx, theta):
-            peak = max(peak, I.peak_max(_force_at, ctx, 0.0, theta, NU.PEAK_TOL)[1])
-        peak = max(peak, _force_at(ctx, theta))
-        I.dense_eval(y, Q, theta, y1, N_STATE)
-        D1, Dd1 = penetration(y1, p, rigid)
-        dmax = max(dmax, D1)
-        if not math.isfinite(D1):
-            status = Rs.ST_NONFINITE
-            break
-        if D1 > half_side:
-            status = Rs.ST_PENETRATION
-            break
-        if theta < 1.0:
-            out[Rs.RJ_PEAK_FORCE] = peak
-            out[Rs.RJ_IMPULSE] = y1[4]
-            out[Rs.RJ_CONTACT_TIME] = t + theta * h
-            out[Rs.RJ_E_EFF] = -Dd1 / w
-            status = Rs.ST_OK
-            break
-        t += h
-        y[:] = y1
-        K[0, :] = K[6, :]
-        h = I.next_step(h, err, NU.SAFETY, NU.FAC_MIN, NU.FAC_MAX)
-    out[Rs.RJ_MAX_PENETRATION] = dmax
-    out[Rs.RJ_N_STEPS] = steps
-    out[Rs.RJ_STATUS] = status
+    tp = pulse_time(p[Lp.LAW], m, p[Lp.KC], speed)
+    error_scales(p, w, speed, tp)
+    w.acc[R_TP] = tp
+    w.acc[R_STATUS] = Rs.ST_MAXSTEPS
+    w.y[1] = speed
+    impact_rhs(0.0, w.y, p, w.iw, w.K[0], w.aux)
+    w.acc[R_PEAK] = w.aux[0]  # the linear law jumps to b w at contact
+    ctl = (rk.METHOD_DOPRI5, p[Lp.TOL], math.inf, 0.0, NU.H_MIN * tp)
+    t, h, why = driver.integrate(impact_rhs, accept, ctl, p, w, 0.0, math.inf, math.inf, 1e-3 * tp)
+    if why == driver.STOP_UNDERFLOW:
+        w.acc[R_STATUS] = Rs.ST_UNDERFLOW
+    write_results(w, t, speed, out)

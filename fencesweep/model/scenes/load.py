@@ -8,7 +8,7 @@ from fencesweep.kernel.jit import kernel
 from fencesweep.model import layout as Lp
 
 
-@kernel(inline="always")
+@kernel(inline=True)
 def corner_offset(j, hl, hw, cphi, sphi):
     """Offset of corner j from the centroid: local (+-L/2, +-A/2) rotated by phi (MODEL.md §1)."""
     lx = hl if (j == 0 or j == 3) else -hl
@@ -16,7 +16,7 @@ def corner_offset(j, hl, hw, cphi, sphi):
     return cphi * lx - sphi * ly, sphi * lx + cphi * ly
 
 
-@kernel(inline="always")
+@kernel(inline=True)
 def corner_motion(j, y, hl, hw, cphi, sphi):
     """Corner j: offset (rx, ry), position (gx, gy) and velocity (gvx, gvy) (MODEL.md §1)."""
     rx, ry = corner_offset(j, hl, hw, cphi, sphi)

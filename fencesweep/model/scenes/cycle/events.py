@@ -1,0 +1,210 @@
+"""Events inside a step of the cycle, located on its dense output (MODEL.md §9: "event times are
+located inside the step, not rounded to it"): a contact slot changing its code, side or edge; a
+graze (a gap that closes and opens again between two apart ends of the step); an outcome
+(scraped, escaped). A release (a pushing contact whose force returns to 0) is located again on
+the method's own flow (release_state; numerics.RELEASE_TOL says why).
+
+The searches are kernel/search.py's, given a predicate or quantity of (ctx, theta) as data.
+"""
+from __future__ import annotations
+
+from fencesweep.kernel import numerics as NU
+from fencesweep.kernel import rk
+from fencesweep.kernel.jit import kernel
+from fencesweep.kernel.search import bisect, peak_max
+from fencesweep.model import layout as Lp
+from fencesweep.model.scenes.contacts import APART, N_SLOTS
+from fencesweep.model.scenes.cycle.layout import IW_CODE, N_CTRL, N_STATE
+from fencesweep.model.scenes.cycle.rhs import rhs
+from fencesweep.model.scenes.cycle.slots import (changed_mask, classify, frame_at, releases, slot_changed,
+                                                 slot_eval)
+from fencesweep.model.scenes.load import outcome_margin
+
+
+@kernel()
+def mask_changed(ctx, theta):
+    """Predicate for search.bisect: has any slot in ctx's mask changed at theta?"""
+    t0, h, y0, Q, p, iw, tmp, mask = ctx
+    rk.dense_eval(y0, Q, theta, tmp, N_CTRL)
+    ca, sa, dal, cphi, sphi = frame_at(t0 + theta * h, tmp, p, iw)
+    for k in range(N_SLOTS):
+        if mask & (1 << k):
+            c, e, g, r = slot_eval(k, tmp, p, iw, ca, sa, dal, cphi, sphi)
+            if slot_changed(k, c, e, iw):
+                return True
+    return False
+
+
+@kernel()
+def neg_gap(ctx, theta):
+    """-gap of one slot at theta (search.peak_max of it is the gap's minimum)."""
+    t0, h, y0, Q, p, iw, tmp, k = ctx
+    rk.dense_eval(y0, Q, theta, tmp, N_CTRL)
+    ca, sa, dal, cphi, sphi = frame_at(t0 + theta * h, tmp, p, iw)
+    c, e, g, r = slot_eval(k, tmp, p, iw, ca, sa, dal, cphi, sphi)
+    return -g
+
+
+@kernel(inline=True)
+def outcome_hit(kind, y, p):
+    """Has outcome `kind` (0 scraped, 1 escaped) happened at state y (MODEL.md §9)?"""
+    m = outcome_margin(kind, y, p)
+    return m >= 0.0 if kind == 0 else m > 0.0
+
+
+@kernel()
+def outcome_reached(ctx, theta):
+    """Predicate for search.bisect: has outcome `kind` happened at theta?"""
+    y0, Q, p, tmp, kind = ctx
+    rk.dense_eval(y0, Q, theta, tmp, N_CTRL)
+    return outcome_hit(kind, tmp, p)
+
+
+@kernel(inline=True)
+def graze_candidate(k, iw, codes1, g0, r0, g1, r1):
+    """Can slot k touch inside the step without changing its code at either end? Apart at both
+    ends, with a gap that closes at the start and opens at the end (graze_theta)."""
+    return (iw[IW_CODE + k] == APART and codes1[k] == APART and g0[k] > 0.0 and g1[k] > 0.0
+            and r0[k] < 0.0 and r1[k] > 0.0)
+
+
+@kernel(inline=True)
+def ensure_dense(p, w, h):
+    """The step's dense-output coefficients w.Q[:4], formed the first time the step needs them
+    (w.qok[0] is 0 after every step taken): most steps have no event and no peak, and never
+    need them."""
+    if w.qok[0] == 0:
+        rk.dense_coeffs(int(p[Lp.METHOD]), w.K, h, w.y, w.y1, w.Q, N_STATE)
+        w.qok[0] = 1
+
+
+@kernel()
+def graze_theta(p, w, t, h):
+    """Earliest theta at which a slot apart at both ends of the step touches in between: every
+    gap whose rate changes sign from closing to opening is minimised on the dense output
+    (no cheaper pre-test: a cubic through the end values missed a 10 us tip clip whose gap
+    function changes branch, MODEL.md §5.2's box distance, inside the step).
+    Returns (theta at the minimum, slot) or (2, -1)."""
+    best = 2.0
+    slot = -1
+    for k in range(N_SLOTS):
+        if not graze_candidate(k, w.iw, w.codes1, w.g0, w.r0, w.g1, w.r1):
+            continue
+        th, ng = peak_max(neg_gap, (t, h, w.y, w.Q, p, w.iw, w.tmp, k), 0.0, 1.0, NU.PEAK_TOL)
+        if ng > 0.0 and th < best and mask_changed((t, h, w.y, w.Q, p, w.iw, w.tmp, 1 << k), th):
+            best = th
+            slot = k
+    return best, slot
+
+
+@kernel()
+def find_event(p, w, t, h, exited):
+    """First event inside the step [t, t + h] on its dense output: (theta just past it, kind)
+    with kind 0 none (theta = 1), 1 a contact change or graze, 2 scraped, 3 escaped. The ends
+    of the step tell which events can lie inside it; only then is its dense output formed."""
+    mask = 0
+    grazing = False
+    for k in range(N_SLOTS):
+        if slot_changed(k, w.codes1[k], w.tags1[k], w.iw):
+            mask |= 1 << k
+        grazing |= graze_candidate(k, w.iw, w.codes1, w.g0, w.r0, w.g1, w.r1)
+    hi = 1.0 if mask != 0 else 2.0
+    if grazing:
+        ensure_dense(p, w, h)
+        th_g, slot = graze_theta(p, w, t, h)
+        if slot >= 0 and th_g < hi:
+            hi = th_g
+            mask |= 1 << slot
+    tol = NU.EVENT_TOL * max(1.0, t) / h
+    theta = 1.0
+    kind = 0
+    if mask != 0:
+        ensure_dense(p, w, h)
+        theta = bisect(mask_changed, (t, h, w.y, w.Q, p, w.iw, w.tmp, mask), 0.0, hi, tol)[1]
+        kind = 1
+    if not exited:
+        for oc in range(2):
+            if outcome_hit(oc, w.y1, p):
+                ensure_dense(p, w, h)
+                th = bisect(outcome_reached, (w.y, w.Q, p, w.tmp, oc), 0.0, 1.0, tol)[1]
+                if th <= theta:
+                    theta = th
+                    kind = 2 + oc
+    return theta, kind
+
+
+# ---------------------------------------------------------------- releases on the method's flow
+
+@kernel()
+def step_part(p, w, t, h, s):
+    """w.ys: the state at t + s h from one step of the method from (t, w.y), K[0] = f(t, y);
+    classified into w.codes1 ... w.tags1. Returns the slots changed there (changed_mask)."""
+    for i in range(N_STATE):
+        w.Ks[0, i] = w.K[0, i]
+    rk.step(int(p[Lp.METHOD]), rhs, t, w.y, s * h, p, w.iw, w.Ks, w.dy, w.ys, w.auxs, w.atol, p[Lp.TOL], N_CTRL)
+    classify(t + s * h, w.ys, p, w.iw, w.codes1, w.g1, w.r1, w.tags1)
+    return changed_mask(w.iw, w.codes1, w.tags1)
+
+
+@kernel(inline=True)
+def located(p, w, t, h, lo, hi, Q2, mask):
+    """The first change of a slot in mask in [lo, hi] (fractions of h) on the dense output Q2
+    of the step [t, t + hi h], just past it (search.bisect)."""
+    sh = hi * h
+    return hi * bisect(mask_changed, (t, sh, w.y, Q2, p, w.iw, w.tmp, mask), lo / hi, 1.0,
+                       NU.EVENT_TOL * max(1.0, t) / sh)[1]
+
+
+@kernel()
+def release_state(p, w, t, h, th):
+    """A release located at th on the dense output Q[:4] of the step [t, t + h], located anew
+    on the method's flow (numerics.RELEASE_TOL says why): [lo, hi] (fractions of h) brackets
+    it on that flow (a step of the method to lo has not released yet, one to hi has; hi = 1 at
+    first, the step's end). Each try steps to s = g + m (hi - g) past the latest located
+    release g; one that reaches it becomes hi, and the release is located again on its dense
+    output Q[4:]; one that falls short becomes lo and g, and the margin m grows. Returns the
+    release, once the step to hi passed it by at most RELEASE_TOL (or, when the tries run
+    out, as located in [lo, hi] on the dense output of the step to hi), the state there in w.ys."""
+    lo = 0.0
+    hi = 1.0
+    g = th
+    m = 0.0
+    mask = (1 << N_SLOTS) - 1  # the slots changed at hi (all: until a step shorter than h reached it)
+    tol = NU.RELEASE_TOL * max(1.0, t) / h
+    for _ in range(NU.RELEASE_TRIES):
+        s = g + m * (hi - g)
+        changed = step_part(p, w, t, h, s)
+        if changed != 0:
+            hi = s
+            mask = changed
+            rk.dense_coeffs(int(p[Lp.METHOD]), w.Ks, s * h, w.y, w.ys, w.Q[4:], N_STATE)
+            g = located(p, w, t, h, lo, hi, w.Q[4:], mask)
+            if hi - g <= tol:
+                break
+            m = NU.RELEASE_MARGIN
+        else:
+            lo = s
+            g = s
+            m = min(0.5, 4.0 * m) if m > 0.0 else NU.RELEASE_MARGIN
+    Qh = w.Q[:4] if hi == 1.0 else w.Q[4:]  # the dense output of the step to hi
+    if g <= lo:
+        g = located(p, w, t, h, lo, hi, Qh, mask)
+    rk.dense_eval(w.y, Qh, g / hi, w.ys, N_STATE)
+    return g
+
+
+@kernel()
+def event_state(p, w, t, h, theta, kind):
+    """The state w.y1 at the event that ends the step [t, t + h] (find_event's theta and kind;
+    w.codes1 .. hold the step's end on entry and the event's on return): on the dense output,
+    or, for releases only (at the event and at the step's end), from release_state. Returns
+    (theta, the tip's edge)."""
+    released = kind == 1 and releases(w.iw, w.codes1)
+    rk.dense_eval(w.y, w.Q, theta, w.y1, N_STATE)
+    edge1 = classify(t + theta * h, w.y1, p, w.iw, w.codes1, w.g1, w.r1, w.tags1)
+    if released and releases(w.iw, w.codes1):
+        theta = release_state(p, w, t, h, theta)
+        for i in range(N_STATE):
+            w.y1[i] = w.ys[i]
+        edge1 = classify(t + theta * h, w.y1, p, w.iw, w.codes1, w.g1, w.r1, w.tags1)
+    return theta, edge1

@@ -1,0 +1,190 @@
+"""The tracked maxima of a cycle (MODEL.md §11: peak_force, peak_rail_force, deflection_max,
+alpha_max), located inside each step (§9: "and so is the peak force"): a quantity that rises at
+the step's start and falls at its end has an interior maximum, found by Brent's search on the
+step's dense output (kernel/search.py) and valued at the state of a step of the method to it."""
+from __future__ import annotations
+
+from fencesweep.kernel import numerics as NU
+from fencesweep.kernel import rk
+from fencesweep.kernel.jit import kernel
+from fencesweep.kernel.search import peak_max
+from fencesweep.model import layout as Lp
+from fencesweep.model.scenes.cycle.books import record
+from fencesweep.model.scenes.cycle.events import ensure_dense
+from fencesweep.model.scenes.cycle.layout import (A_QMAX, AX_NF, AX_NR, IW_LOAD, IW_MODE, IW_RIDE, N_CTRL, N_Q,
+                                                  N_STATE, Q_ALPHA, Q_DEFL, Q_NF, Q_NR, QV_0, QV_1, QV_A, QV_B,
+                                                  QV_S, QV_THETA)
+from fencesweep.model.scenes.cycle.rhs import fence_state, rhs
+
+UNJUDGED = -1.0  # rising[k] when the step before did not judge quantity k at its end
+
+
+@kernel()
+def quantities(t, y, p, iw, aux, dy, q, forces):
+    """The tracked quantities at (t, y): fence and rail force sums, |alpha - alpha_w|, alpha.
+    Without `forces` the force sums (which cost a right-hand side) are left as they are."""
+    al, dal, aw, daw = fence_state(t, y, p, iw[IW_MODE])
+    if forces:
+        q[Q_NF] = 0.0
+        q[Q_NR] = 0.0
+        if iw[IW_LOAD] != 0 and iw[IW_RIDE] == 0:
+            rhs(t, y, p, iw, dy, aux)
+            q[Q_NF] = aux[AX_NF]
+            q[Q_NR] = aux[AX_NR]
+    q[Q_DEFL] = abs(al - aw)
+    q[Q_ALPHA] = al
+
+
+@kernel(inline=True)
+def quantities_from_aux(t, y, p, iw, aux, q):
+    """The tracked quantities at (t, y) with aux from rhs there."""
+    al, dal, aw, daw = fence_state(t, y, p, iw[IW_MODE])
+    q[Q_NF] = aux[AX_NF]
+    q[Q_NR] = aux[AX_NR]
+    q[Q_DEFL] = abs(al - aw)
+    q[Q_ALPHA] = al
+
+
+@kernel()
+def quantity_at(ctx, theta):
+    """One tracked quantity on the dense output (for search.peak_max)."""
+    t0, h, y0, Q, p, iw, tmp, aux, dy, q, kind = ctx
+    rk.dense_eval(y0, Q, theta, tmp, N_CTRL)
+    quantities(t0 + theta * h, tmp, p, iw, aux, dy, q, kind < Q_DEFL)
+    return q[kind]
+
+
+@kernel(inline=True)
+def near_maximum(q0, q1, acc, k):
+    """Can this step hold a new maximum of tracked quantity k? Only if one of its end samples
+    is within numerics.PEAK_CANDIDATE of the running maximum (the samples around an interior
+    peak are, at steps that resolve it), and that maximum is not 0 (a force before any contact:
+    a contact's onset is an event, after which the step is judged anew)."""
+    m = max(acc[A_QMAX + k], q0[k], q1[k])
+    return max(q0[k], q1[k]) >= NU.PEAK_CANDIDATE * m and m > 0.0
+
+
+@kernel(inline=True)
+def fence_slopes(t, y, p, iw):
+    """Time derivatives of the tracked fence quantities at (t, y): of the deflection
+    |alpha - alpha_w| (MODEL.md §11) and of alpha."""
+    al, dal, aw, daw = fence_state(t, y, p, iw[IW_MODE])
+    rate = dal - daw
+    if al - aw < 0.0:
+        rate = -rate
+    elif al == aw:
+        rate = abs(rate)
+    return rate, dal
+
+
+@kernel()
+def step_to(p, w, t, h, th):
+    """w.ys: the state at t + th h from a step of the method from (t, w.y) to it, not from the
+    dense output (whose error is not controlled); the value of a located peak is read there."""
+    for i in range(N_STATE):
+        w.tmp[i] = w.y[i]
+    rhs(t, w.tmp, p, w.iw, w.Ks[0], w.auxs)
+    rk.step(int(p[Lp.METHOD]), rhs, t, w.tmp, th * h, p, w.iw, w.Ks, w.dy, w.ys, w.auxs, w.atol, p[Lp.TOL], N_CTRL)
+
+
+@kernel()
+def peak_value(p, w, t, h, th, k):
+    """Quantity k at t + th h, from step_to: one extra step per located peak."""
+    step_to(p, w, t, h, th)
+    qs = w.qv[QV_S]
+    quantities(t + th * h, w.ys, p, w.iw, w.auxs, w.dy, qs, k < Q_DEFL)
+    return qs[k]
+
+
+@kernel(inline=True)
+def judge_forces(p, w, t, h, theta_end):
+    """The force sums near their running maximum: whether they rose at the step's start (where
+    not judged yet) and samples just before its end (QV_B), a thousandth of the step inside."""
+    ensure_dense(p, w, h)
+    q0, qa, qb, rising = w.qv[QV_0], w.qv[QV_A], w.qv[QV_B], w.rising
+    d = 1e-3 * theta_end
+    if rising[Q_NF] == UNJUDGED or rising[Q_NR] == UNJUDGED:
+        rk.dense_eval(w.y, w.Q, d, w.tmp, N_CTRL)
+        quantities(t + d * h, w.tmp, p, w.iw, w.auxs, w.dy, qa, True)
+        for k in range(Q_DEFL):
+            if rising[k] == UNJUDGED:
+                rising[k] = 1.0 if qa[k] > q0[k] else 0.0
+    rk.dense_eval(w.y, w.Q, theta_end - d, w.tmp, N_CTRL)
+    quantities(t + (theta_end - d) * h, w.tmp, p, w.iw, w.auxs, w.dy, qb, True)
+
+
+@kernel(inline=True)
+def judge_fence(p, w, t, h, theta_end):
+    """The fence's quantities, by their derivatives: whether they rose at the step's start
+    (where not judged yet), and stand-ins for samples just before its end (QV_B; only the sign
+    of their difference from the end's value is read)."""
+    rising = w.rising
+    if rising[Q_DEFL] == UNJUDGED or rising[Q_ALPHA] == UNJUDGED:
+        sd, sa = fence_slopes(t, w.y, p, w.iw)
+        if rising[Q_DEFL] == UNJUDGED:
+            rising[Q_DEFL] = 1.0 if sd > 0.0 else 0.0
+        if rising[Q_ALPHA] == UNJUDGED:
+            rising[Q_ALPHA] = 1.0 if sa > 0.0 else 0.0
+    sd, sa = fence_slopes(t + theta_end * h, w.y1, p, w.iw)
+    q1, qb = w.qv[QV_1], w.qv[QV_B]
+    qb[Q_DEFL] = q1[Q_DEFL] - sd
+    qb[Q_ALPHA] = q1[Q_ALPHA] - sa
+
+
+@kernel()
+def track_maxima(p, w, t, h, theta_end):
+    """Running maxima of the tracked quantities over the step [t, t + theta_end h]: the end
+    samples, and an interior maximum (the quantity rising at the start and falling at the
+    end, judged on the dense output) located by Brent's search (search.peak_max, MODEL.md §9).
+    w.rising[k] says whether quantity k rose at the start (1, 0; UNJUDGED when the step before
+    was far from its maximum, or after an event: rising[N_Q] = 1); on return it says so for
+    the step's end. The fence's quantities are judged by their derivatives at the ends
+    (judge_fence); the force sums, which have no cheap derivative, by samples on the dense
+    output, each costing a right-hand side, and only in steps near their running maximum
+    (judge_forces). w.qv[QV_THETA][k]: the fraction of the step at which quantity k's interior
+    maximum was located, -1 where none was."""
+    q0, q1, qb, ths, acc, rising = w.qv[QV_0], w.qv[QV_1], w.qv[QV_B], w.qv[QV_THETA], w.acc, w.rising
+    for k in range(N_Q):
+        ths[k] = -1.0
+    forces = near_maximum(q0, q1, acc, Q_NF) or near_maximum(q0, q1, acc, Q_NR)
+    if rising[N_Q] != 0.0:
+        for k in range(N_Q):
+            rising[k] = UNJUDGED
+    if forces:
+        judge_forces(p, w, t, h, theta_end)
+    judge_fence(p, w, t, h, theta_end)
+    for k in range(N_Q):
+        m = max(acc[A_QMAX + k], q0[k], q1[k])
+        if k < Q_DEFL and not forces:
+            acc[A_QMAX + k] = m
+            rising[k] = UNJUDGED
+            continue
+        if rising[k] == 1.0 and qb[k] > q1[k] and max(q1[k], q0[k]) >= NU.PEAK_CANDIDATE * m:
+            ensure_dense(p, w, h)
+            th, qm = peak_max(quantity_at, (t, h, w.y, w.Q, p, w.iw, w.tmp, w.auxs, w.dy, w.qv[QV_S], k),
+                              0.0, theta_end, NU.PEAK_TOL)
+            m = max(m, peak_value(p, w, t, h, th, k))
+            ths[k] = th
+        acc[A_QMAX + k] = m
+        rising[k] = 1.0 if q1[k] > qb[k] else 0.0
+    rising[N_Q] = 0.0
+
+
+@kernel()
+def record_peaks(p, w, t, h, theta_end):
+    """Trajectory rows at the maxima located inside the step (track_maxima's QV_THETA), in time
+    order, each at the state of a step of the method to it: so that the trajectory's peaks are
+    the results' (peak_force, deflection_max, alpha_max), not the samples around them."""
+    ths = w.qv[QV_THETA]
+    prev = 0.0
+    while True:
+        th = 2.0
+        for k in range(N_Q):
+            if ths[k] > prev and ths[k] < th:
+                th = ths[k]
+        if th >= theta_end * (1.0 - 1e-9):
+            return
+        step_to(p, w, t, h, th)
+        rhs(t + th * h, w.ys, p, w.iw, w.dy, w.auxs)
+        w.row[0] = record(w.traj, w.row[0], t + th * h, w.ys, p, w.iw, w.auxs)
+        prev = th

@@ -1,0 +1,163 @@
+"""The cycle's right-hand side (MODEL.md §3, §5, §6): the fence's equation, the load's contacts
+and its belt friction. Between events it is smooth: it evaluates only the contacts whose slot
+is not APART, in the mode (iw) fixed at the step's start."""
+from __future__ import annotations
+
+import math
+
+from fencesweep.kernel.jit import kernel
+from fencesweep.model import layout as Lp
+from fencesweep.model.contact import belt_friction
+from fencesweep.model.drive import drive_angle
+from fencesweep.model.scenes.contacts import (APART, PUSH, RAIL0, TIP, corner_fence_force, corner_fence_geometry,
+                                              corner_rail_force, tip_edge_force, tip_edge_normal, tip_local)
+from fencesweep.model.scenes.cycle.layout import (AX_CA, AX_CPHI, AX_DAL, AX_DMAX, AX_FRAME, AX_FX, AX_FY, AX_NF,
+                                                  AX_NR, AX_PDISS, AX_PFRIC, AX_SA, AX_SPHI, AX_TAU, AX_TQ,
+                                                  FM_KELVIN, FM_KINEMATIC, IW_CODE, IW_EDGE, IW_LOAD, IW_MODE,
+                                                  IW_RIDE, N_AUX)
+from fencesweep.model.scenes.load import corner_motion
+
+
+@kernel(inline=True)
+def fence_state(t, y, p, mode):
+    """(alpha, alpha', alpha_w, alpha_w'): the fence follows alpha_w when kinematic (§3)."""
+    aw, daw = drive_angle(t, p)
+    if mode == FM_KINEMATIC:
+        return aw, daw, aw, daw
+    return y[6], y[7], aw, daw
+
+
+@kernel(inline=True)
+def add_contact(aux, ax_n, fx, fy, tq, tau, n, p_diss, p_fric, D):
+    """Add one contact's forces (contacts.py) to the sums in aux: on the load, the moment on the
+    fence, its normal force to the fence or rail sum, the dissipated powers, the penetration."""
+    aux[AX_FX] += fx
+    aux[AX_FY] += fy
+    aux[AX_TQ] += tq
+    aux[AX_TAU] += tau
+    aux[ax_n] += n
+    aux[AX_PDISS] += p_diss
+    aux[AX_PFRIC] += p_fric
+    aux[AX_DMAX] = max(aux[AX_DMAX], D)
+
+
+@kernel(inline=True)
+def save_frame(aux, ca, sa, dal, cphi, sphi):
+    """Keep the frame the contacts were evaluated in (AX_CA..AX_SPHI) for slots.classify_after_rhs."""
+    aux[AX_CA] = ca
+    aux[AX_SA] = sa
+    aux[AX_DAL] = dal
+    aux[AX_CPHI] = cphi
+    aux[AX_SPHI] = sphi
+    aux[AX_FRAME] = 1.0
+
+
+@kernel(inline=True)
+def corner_sum(y, p, iw, ca, sa, dal, cphi, sphi, aux):
+    """Add the forces of the corners' slots that are not APART: on the fence (§5.1), on the rail (§5.3)."""
+    kc, cd, law, mu2, eps = p[Lp.KC], p[Lp.CD], p[Lp.LAW], p[Lp.MU2], p[Lp.EPSV]
+    hl = 0.5 * p[Lp.LL]
+    hw = 0.5 * p[Lp.AA]
+    for j in range(4):
+        cf = iw[IW_CODE + j]
+        cr = iw[IW_CODE + RAIL0 + j]
+        if cf == APART and cr == APART:
+            continue
+        rx, ry, gx, gy, gvx, gvy = corner_motion(j, y, hl, hw, cphi, sphi)
+        if cf != APART:
+            s, D, Dd = corner_fence_geometry(gx, gy, gvx, gvy, ca, sa, dal, iw[j])
+            a, b, c, d, n, pd, pf = corner_fence_force(rx, ry, gvx, gvy, s, D, Dd, iw[j], ca, sa,
+                                                       kc, cd, law, mu2, eps, cf == PUSH)
+            add_contact(aux, AX_NF, a, b, c, d, n, pd, pf, D)
+        if cr != APART:
+            a, b, c, n, pd, pf = corner_rail_force(rx, ry, gvx, gvy, gy, kc, cd, law, mu2, eps, cr == PUSH)
+            add_contact(aux, AX_NR, a, b, c, 0.0, n, pd, pf, -gy)
+
+
+@kernel(inline=True)
+def tip_sum(y, p, iw, ca, sa, dal, cphi, sphi, aux):
+    """Add the force of the tip's slot when it is not APART (§5.2)."""
+    ct = iw[IW_CODE + TIP]
+    if ct == APART:
+        return
+    hl = 0.5 * p[Lp.LL]
+    hw = 0.5 * p[Lp.AA]
+    fl = p[Lp.FL]
+    tx = fl * ca
+    ty = fl * sa
+    tlx, tly, dx, dyy = tip_local(tx, ty, y[0], y[1], cphi, sphi)
+    D, nex, ney = tip_edge_normal(iw[IW_EDGE], tlx, tly, hl, hw, cphi, sphi)
+    a, b, c, d, n, pd, pf, Dd = tip_edge_force(D, nex, ney, tx, ty, dx, dyy, y[3], y[4], y[5], dal,
+                                               p[Lp.KC], p[Lp.CD], p[Lp.LAW], p[Lp.MU2], p[Lp.EPSV], ct == PUSH)
+    add_contact(aux, AX_NF, a, b, c, d, n, pd, pf, D)
+
+
+@kernel(inline=True)
+def contact_sum(y, p, iw, ca, sa, dal, aux):
+    """Sum into aux the forces of every slot that is not APART (MODEL.md §5): on the load
+    (AX_FX, AX_FY, AX_TQ), the moment on the fence (AX_TAU), the normal-force sums and the
+    dissipated powers."""
+    cphi = math.cos(y[2])
+    sphi = math.sin(y[2])
+    save_frame(aux, ca, sa, dal, cphi, sphi)
+    corner_sum(y, p, iw, ca, sa, dal, cphi, sphi, aux)
+    tip_sum(y, p, iw, ca, sa, dal, cphi, sphi, aux)
+
+
+@kernel(inline=True)
+def load_rhs(y, p, iw, ca, sa, dal, dy, aux):
+    """Load equations (MODEL.md §1, §5, §6): velocities, and accelerations from belt friction
+    and the contacts; the closed-form belt ride when it rides. Returns the moment on the fence."""
+    dy[0] = y[3]
+    dy[1] = y[4]
+    dy[2] = y[5]
+    if iw[IW_RIDE] != 0:
+        for i in (3, 4, 5, 9, 11, 12):
+            dy[i] = 0.0
+        return 0.0
+    vx, vy, om = y[3], y[4], y[5]
+    bx, by, bt = belt_friction(vx - p[Lp.V], vy, om, p[Lp.FMAX], p[Lp.MMAX], p[Lp.RHO], p[Lp.EPSV])
+    contact_sum(y, p, iw, ca, sa, dal, aux)
+    dy[3] = (aux[AX_FX] + bx) / p[Lp.M1]
+    dy[4] = (aux[AX_FY] + by) / p[Lp.M1]
+    dy[5] = (aux[AX_TQ] + bt) / p[Lp.I1]
+    dy[9] = aux[AX_PDISS]
+    dy[11] = bx * vx + by * vy + bt * om
+    dy[12] = aux[AX_PFRIC]
+    return aux[AX_TAU]
+
+
+@kernel(inline=True)
+def element_torque(aw, daw, al, dal, b2, k2):
+    """Torque of the flexible element on the fence [N m] (MODEL.md §3): B2 (alpha_w' - alpha')
+    + K2 (alpha_w - alpha)."""
+    return b2 * (daw - dal) + k2 * (aw - al)
+
+
+@kernel()
+def rhs(t, y, p, iw, dy, aux):
+    """Right-hand side of the cycle in the mode of iw; fills dy and aux (contact forces).
+    Fence (MODEL.md §3): I2 alpha'' = B2 (alpha_w' - alpha') + K2 (alpha_w - alpha) + tau."""
+    mode = iw[IW_MODE]
+    al, dal, aw, daw = fence_state(t, y, p, mode)
+    for i in range(N_AUX):
+        aux[i] = 0.0
+    tau = 0.0
+    if iw[IW_LOAD] != 0:
+        tau = load_rhs(y, p, iw, math.cos(al), math.sin(al), dal, dy, aux)
+    else:
+        for i in (0, 1, 2, 3, 4, 5, 9, 11, 12):
+            dy[i] = 0.0
+    dy[8] = 0.0
+    if mode == FM_KINEMATIC:
+        dy[6] = 0.0
+        dy[7] = 0.0
+        dy[10] = -tau * daw
+        return
+    torque = 0.0
+    if mode == FM_KELVIN:
+        torque = element_torque(aw, daw, al, dal, p[Lp.B2], p[Lp.K2])
+        dy[8] = p[Lp.B2] * (daw - dal) ** 2
+    dy[6] = dal
+    dy[7] = (torque + tau) / p[Lp.I2]
+    dy[10] = torque * daw

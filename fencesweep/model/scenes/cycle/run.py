@@ -1,0 +1,142 @@
+"""The cycle's loop (MODEL.md §8-§9): kernel/driver.py's `integrate` with the cycle's right-hand
+side and `accept`, the cycle's handling of each accepted step:
+
+  the step's end classified -> the first event inside it located on its dense output (a contact
+  slot changing its code, a graze, an outcome: events.py) and the step ended there -> the peaks
+  located inside it (peaks.py) -> book-keeping (stages, the event's new contact codes, the side
+  memory, the closed-form ride, the trajectory) -> the state moved on.
+
+`run` drives the loop: to t_max while the load is on the belt (landing on t_c, where §11's
+residuals are read), then, once the load has left (or timed out before t_c), the fence alone
+to t_c.
+"""
+from __future__ import annotations
+
+import math
+
+from fencesweep.kernel import driver
+from fencesweep.kernel import numerics as NU
+from fencesweep.kernel import rk
+from fencesweep.kernel.jit import kernel
+from fencesweep.model import layout as Lp
+from fencesweep.model import results as Rs
+from fencesweep.model.contact import pulse_time
+from fencesweep.model.scenes.contacts import N_SLOTS
+from fencesweep.model.scenes.cycle.books import after_step, at_t_c, drop_load, record
+from fencesweep.model.scenes.cycle.events import event_state, find_event
+from fencesweep.model.scenes.cycle.layout import (A_DMAX, A_EXITED, A_QMAX, A_STAGE, A_STATUS, AX_DMAX, N_Q,
+                                                  N_STATE, QV_0, QV_1)
+from fencesweep.model.scenes.cycle.peaks import quantities, quantities_from_aux, record_peaks, track_maxima
+from fencesweep.model.scenes.cycle.rhs import rhs
+from fencesweep.model.scenes.cycle.slots import classify, classify_after_rhs, new_push, stage_of
+
+
+@kernel(inline=True)
+def all_finite(y):
+    for i in range(y.shape[0]):
+        if not math.isfinite(y[i]):
+            return False
+    return True
+
+
+@kernel(inline=True)
+def onset_step(p, w, h_next):
+    """The step after a contact onset: at most numerics.ONSET_STEP of the load's pulse time at the
+    fastest closing speed (contact.pulse_time)."""
+    return min(h_next, NU.ONSET_STEP * pulse_time(p[Lp.LAW], p[Lp.M1], p[Lp.KC], w.atol[3] / p[Lp.TOL]))
+
+
+@kernel(inline=True)
+def move_on(p, w, t1, kind, edge1, h_next):
+    """Apply the event that ended the step at t1 (books.after_step) and start the next step
+    there: f(t1, y1) and the quantities anew when the mode changed, else the FSAL stage.
+    Returns the next step."""
+    onset = kind == 1 and new_push(w.iw, w.codes1)
+    if after_step(t1, w.y1, p, w.iw, kind, w.codes1, w.tags1, edge1, w.acc):
+        w.rising[N_Q] = 1.0
+        if onset:
+            h_next = onset_step(p, w, h_next)
+        classify(t1, w.y1, p, w.iw, w.codes1, w.g1, w.r1, w.tags1)
+        rhs(t1, w.y1, p, w.iw, w.K[0], w.aux)  # f(t1, y1) in the new mode
+        quantities_from_aux(t1, w.y1, p, w.iw, w.aux, w.qv[QV_0])
+    else:
+        for i in range(N_STATE):
+            w.K[0, i] = w.K[6, i]  # first same as last
+        for k in range(N_Q):
+            w.qv[QV_0, k] = w.qv[QV_1, k]  # the same point, the same right-hand side
+    for k in range(N_Q):
+        w.acc[A_QMAX + k] = max(w.acc[A_QMAX + k], w.qv[QV_0, k])
+    w.acc[A_DMAX] = max(w.acc[A_DMAX], w.aux[AX_DMAX])
+    for i in range(N_SLOTS):
+        w.g0[i] = w.g1[i]
+        w.r0[i] = w.r1[i]
+    for i in range(N_STATE):
+        w.y[i] = w.y1[i]
+    return h_next
+
+
+@kernel(inline=True)
+def check_state(p, w):
+    """A run that cannot be trusted ends (MODEL.md §5): a non-finite state, or a penetration
+    deeper than half the load's smaller side. Returns whether the run goes on."""
+    if not all_finite(w.y):
+        w.acc[A_STATUS] = Rs.ST_NONFINITE
+    elif w.acc[A_DMAX] > 0.5 * min(p[Lp.LL], p[Lp.AA]):
+        w.acc[A_STATUS] = Rs.ST_PENETRATION
+    return w.acc[A_STATUS] == Rs.ST_OK
+
+
+@kernel()
+def accept(p, w, t, h, t1, err, h_next):
+    """The cycle's handling of an accepted step [t, t1] (module docstring); the driver's hook.
+    Returns (the new t, the next step, stop): stop at an outcome or a failed state."""
+    w.qok[0] = 0  # the step's dense output is formed when first needed (events.ensure_dense)
+    exited = w.acc[A_EXITED] != 0.0
+    edge1 = classify_after_rhs(t + h, w.y1, p, w.iw, w.codes1, w.g1, w.r1, w.tags1, w.aux)  # aux: of f(t + h, y1)
+    theta, kind = find_event(p, w, t, h, exited)
+    if kind == 0:
+        quantities_from_aux(t1, w.y1, p, w.iw, w.aux, w.qv[QV_1])  # aux of the FSAL stage f(t1, y1)
+    else:
+        theta, edge1 = event_state(p, w, t, h, theta, kind)
+        t1 = t + theta * h
+        quantities(t1, w.y1, p, w.iw, w.aux, w.dy, w.qv[QV_1], True)
+    track_maxima(p, w, t, h, theta)
+    if w.traj.shape[0] > 0:
+        record_peaks(p, w, t, h, theta)
+    if not exited:
+        w.acc[A_STAGE + stage_of(w.iw)] += t1 - t
+    h_next = move_on(p, w, t1, kind, edge1, h_next)
+    if t1 == p[Lp.TC]:
+        at_t_c(t1, w.y, p, w.iw, w.acc)
+    w.row[0] = record(w.traj, w.row[0], t1, w.y, p, w.iw, w.aux)
+    ok = check_state(p, w)
+    return t1, h_next, kind >= 2 or not ok
+
+
+@kernel(inline="always")
+def run(p, w):
+    """The cycle's loop (module docstring), from t = 0 with the state, codes and quantities that
+    stream.begin_cycle set."""
+    tc = p[Lp.TC]
+    method = int(p[Lp.METHOD])
+    ctl = (method, p[Lp.TOL], p[Lp.H_MAX], p[Lp.DT], NU.H_MIN)
+    t = 0.0
+    h = p[Lp.DT] if method == rk.METHOD_RK4 else 0.1 * p[Lp.H_MAX]
+    while True:
+        exited = w.acc[A_EXITED] != 0.0
+        t_end = tc if exited else p[Lp.TMAX]
+        if driver.reached(t, t_end):
+            if exited or t >= tc:
+                return
+            # t_max before t_c (MODEL.md §9 timeout): the load leaves, the fence runs on alone to t_c
+            # (its results are over [0, max(t_exit, t_c)])
+            drop_load(t, w.y, w.iw, w.acc, Rs.TIMEOUT)
+            rhs(t, w.y, p, w.iw, w.K[0], w.aux)
+            continue
+        t, h, why = driver.integrate(rhs, accept, ctl, p, w, t, t_end, tc, h)
+        if why == driver.STOP_MAX_STEPS:
+            w.acc[A_STATUS] = Rs.ST_MAXSTEPS
+        elif why == driver.STOP_UNDERFLOW:
+            w.acc[A_STATUS] = Rs.ST_UNDERFLOW
+        if w.acc[A_STATUS] != Rs.ST_OK:
+            return
