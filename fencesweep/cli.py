@@ -17,7 +17,7 @@ from fencesweep import __version__
 from fencesweep.model import params as P
 from fencesweep.study import spec as S
 from fencesweep.study import specfile
-from fencesweep.study import sweep
+from fencesweep.study import output, sweep
 from fencesweep.errors import UsageError
 
 __all__ = ["main", "build_parser", "UsageError"]
@@ -168,7 +168,7 @@ def cmd_grid(args: argparse.Namespace) -> int:
         raise UsageError("--scheduler is only used with --backend dask")
     say = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
     spec = specfile.load(args.spec)
-    out = Path(args.out) if args.out else sweep.default_output(spec)
+    out = Path(args.out) if args.out else output.default_output(spec)
     if spec.envelope is not None and spec.envelope.skipped:
         say(f"note: {_skip_note(spec)}")
     if args.dry_run:
@@ -177,7 +177,7 @@ def cmd_grid(args: argparse.Namespace) -> int:
         res = sweep.run_sweep(spec, out, jobs=args.jobs, resume=not args.no_resume, backend=args.backend,
                               scheduler=args.scheduler, progress=not args.quiet, log=say, overwrite=args.overwrite)
     except KeyboardInterrupt:
-        work, saved, total = sweep.saved_chunks(spec, out)
+        work, saved, total = output.saved_chunks(spec, out)
         print(f"fencesweep: interrupted; {saved}{f' of {total}' if total else ''} chunks are saved in {work}; "
               f"run the same command again to finish", file=sys.stderr)
         return 130
@@ -308,55 +308,12 @@ def cmd_plot_design(args: argparse.Namespace) -> int:
 def _dry_run(spec: S.Spec, out: Path, args: argparse.Namespace) -> int:
     import joblib
 
-    jobs = args.jobs or joblib.cpu_count()
-    problem = sweep.plan_size_problem(spec)
-    if problem:  # count only: planning would not fit in memory
-        print(f"{spec.path or 'spec'}: scene {spec.scene}, {spec.n_scenes} scenes ({spec.shape_text()}) -> {out}")
-        print("  distinct model runs: not counted (planning them would not fit in memory)")
-        print(f"  a real run would stop before it starts: {problem}")
-        return 0
-    plan = sweep.make_plan(spec, progress=not args.quiet)
-    work = sweep.work_root(out) / plan.salt[:16]
-    if plan.chunk_size is None and not args.no_resume:
-        plan.chunk_size = sweep.recorded_chunk_size(work)
-    lines = sweep.describe_plan(plan, out)
-    try:
-        t_warm = sweep.warm_up(plan)
-        per_run, k = sweep.time_sample(plan)
-    except RuntimeError as exc:
-        print("\n".join(lines))
-        print(f"  estimated time: unavailable ({exc})")
-        return 0
-    if plan.chunk_size is None:
-        plan.chunk_size = sweep.auto_chunk_size(plan.n_models, per_run)
-        lines = sweep.describe_plan(plan, out)
-    print("\n".join(lines))
-    if not args.overwrite:
-        try:
-            sweep.check_output(spec, out)
-        except UsageError as exc:
-            print(f"  note: a real run would stop before it starts: {exc}")
-    done = [] if args.no_resume else sweep.chunks_done(plan, work)
-    n_pending = plan.n_models - sum(len(plan.chunk_models(c)) for c in done)
-    if done:
-        print(f"  already done: {len(done)} chunks in {work}")
-    workers = sweep.local_jobs(jobs, per_run * n_pending) if args.backend == "loky" else None
-    est = per_run * n_pending / (workers or 1)
-    print(f"  engine: warm-up {t_warm:.2f} s; {per_run * 1e3:.3g} ms per run (timed on {k} runs)")
-    if workers:
-        print(f"  estimated time on {workers} job{'s' if workers > 1 else ''}: {_human(est)} "
-              f"for {n_pending} runs")
-    else:
-        print(f"  estimated time: {_human(est)} of work for {n_pending} runs, divided by the cluster's workers")
+    from fencesweep.study.estimate import estimate
+
+    est = estimate(spec, out, args.jobs or joblib.cpu_count(), resume=not args.no_resume, backend=args.backend,
+                   overwrite=args.overwrite, progress=not args.quiet)
+    print("\n".join(est.lines()))
     return 0
-
-
-def _human(seconds: float) -> str:
-    if seconds < 90:
-        return f"{seconds:.1f} s"
-    if seconds < 5400:
-        return f"{seconds / 60:.1f} min"
-    return f"{seconds / 3600:.1f} h"
 
 
 def add_plot_parser(sub) -> argparse.ArgumentParser:
