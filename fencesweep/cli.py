@@ -1,4 +1,6 @@
-"""The command line: `fencesweep run | grid | plot`. No physics here.
+"""The command line: `fencesweep run | grid | design | sensitivity | plot | plot-design`. No
+physics and no orchestration here: each command parses its arguments, calls the Python API
+(fencesweep.model.simulate for one scene, fencesweep.study.api for the studies) and prints.
 
 Bad input prints one clear message (the parameter, the value, what is allowed) and exits
 with code 2; nothing runs then.
@@ -15,9 +17,7 @@ from pathlib import Path
 
 from fencesweep import __version__
 from fencesweep.model import params as P
-from fencesweep.study import spec as S
-from fencesweep.study import specfile
-from fencesweep.study import sweep
+from fencesweep.study import api
 from fencesweep.errors import UsageError
 
 __all__ = ["main", "build_parser", "UsageError"]
@@ -157,6 +157,11 @@ def add_grid_parser(sub) -> argparse.ArgumentParser:
     return g
 
 
+def _say(args: argparse.Namespace):
+    """The notes and summaries on stderr (nothing with --quiet)."""
+    return (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
+
+
 def cmd_grid(args: argparse.Namespace) -> int:
     if args.out is not None and not args.out.endswith(".parquet"):
         raise UsageError(f"--out {args.out!r} must end with .parquet")
@@ -166,50 +171,35 @@ def cmd_grid(args: argparse.Namespace) -> int:
         raise UsageError("--backend dask needs --scheduler ADDRESS (e.g. tcp://HOST:8786)")
     if args.scheduler and args.backend != "dask":
         raise UsageError("--scheduler is only used with --backend dask")
-    say = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
-    spec = specfile.load(args.spec)
-    out = Path(args.out) if args.out else sweep.default_output(spec)
-    if spec.envelope is not None and spec.envelope.skipped:
-        say(f"note: {_skip_note(spec)}")
+    say = _say(args)
     if args.dry_run:
-        return _dry_run(spec, out, args)
+        est = api.estimate(args.spec, out=args.out, jobs=args.jobs, resume=not args.no_resume, backend=args.backend,
+                           overwrite=args.overwrite, progress=not args.quiet, log=say)
+        print("\n".join(est.lines()))
+        return 0
     try:
-        res = sweep.run_sweep(spec, out, jobs=args.jobs, resume=not args.no_resume, backend=args.backend,
-                              scheduler=args.scheduler, progress=not args.quiet, log=say, overwrite=args.overwrite)
-    except KeyboardInterrupt:
-        work, saved, total = sweep.saved_chunks(spec, out)
-        print(f"fencesweep: interrupted; {saved}{f' of {total}' if total else ''} chunks are saved in {work}; "
-              f"run the same command again to finish", file=sys.stderr)
+        run = api.run_grid(args.spec, out=args.out, jobs=args.jobs, resume=not args.no_resume, backend=args.backend,
+                           scheduler=args.scheduler, progress=not args.quiet, overwrite=args.overwrite, log=say)
+    except api.SweepInterrupted as exc:
+        print(f"fencesweep: {exc.saved_text}; run the same command again to finish", file=sys.stderr)
         return 130
-    rate = res.n_scenes / res.seconds if res.seconds > 0 else math.inf
-    where = "Dask" if res.jobs is None else f"{res.jobs} job{'s' if res.jobs != 1 else ''}"
-    say(f"wrote {res.out}: {res.n_scenes} scenes ({res.n_models} model runs; {res.computed} chunks computed, "
-        f"{res.reused} reused) in {res.seconds:.1f} s, {rate:.1f} scenes/s on {where}")
-    if res.failed_runs:
-        say(f"warning: {res.failed_runs} scenes raised in the engine; their status is 'failed: exception ...'")
-    if spec.envelope is not None:
-        _envelope_points(spec, res.out, say)
+    rate = run["scenes"] / run["seconds"] if run["seconds"] > 0 else math.inf
+    where = "Dask" if run["jobs"] is None else f"{run['jobs']} job{'s' if run['jobs'] != 1 else ''}"
+    say(f"wrote {run['out']}: {run['scenes']} scenes ({run['model_runs']} model runs; {run['chunks_computed']} chunks "
+        f"computed, {run['chunks_reused']} reused) in {run['seconds']:.1f} s, {rate:.1f} scenes/s on {where}")
+    if run["failed_runs"]:
+        say(f"warning: {run['failed_runs']} scenes raised in the engine; their status is 'failed: exception ...'")
+    if run["points"] is not None:
+        say(_points_line(run["points"]))
     return 0
 
 
-def _skip_note(spec: S.Spec) -> str:
-    from fencesweep.study import envelope as E
-
-    return E._skip_text(spec.envelope, "cannot start on the belt and are skipped (envelope.invalid: skip)")
-
-
-def _envelope_points(spec: S.Spec, out: Path, say) -> None:
-    """An envelope sweep: the per-design-point table beside the per-load one, and a summary."""
-    from fencesweep.study import envelope as E
-
-    path, pts = E.write_points(spec, out)
-    feas = int(pts["feasible"].sum())
-    best = pts.loc[pts["min_margin"].idxmax()]
-    by = E.design_columns(spec)
-    label = ", ".join(f"{c} = {best[c]:g}" if isinstance(best[c], float) else f"{c} = {best[c]}" for c in by)
-    say(f"wrote {path}: {len(pts)} design points x {len(spec.envelope.loads)} loads; "
-        f"{feas} keep every constraint for every load; largest smallest margin {best['min_margin']:.3f}"
-        + (f" at {label}" if label else "") + f" (binding: {best['binding']})")
+def _points_line(pts: dict) -> str:
+    """An envelope sweep's per-design-point table in one line: its size, the feasible points, the best one."""
+    label = ", ".join(f"{c} = {v:g}" if isinstance(v, float) else f"{c} = {v}" for c, v in pts["best"].items())
+    return (f"wrote {pts['path']}: {pts['design_points']} design points x {pts['loads']} loads; "
+            f"{pts['feasible']} keep every constraint for every load; largest smallest margin {pts['min_margin']:.3f}"
+            + (f" at {label}" if label else "") + f" (binding: {pts['binding']})")
 
 
 def add_design_parser(sub) -> argparse.ArgumentParser:
@@ -228,20 +218,13 @@ def add_design_parser(sub) -> argparse.ArgumentParser:
 
 
 def cmd_design(args: argparse.Namespace) -> int:
-    from fencesweep.study import design as D
+    from fencesweep.study.design import summary_lines
 
     if args.jobs < 1:
         raise UsageError(f"--jobs {args.jobs} is not allowed: --jobs must be >= 1")
-    spec = specfile.load(args.spec)
-    if spec.design is None:
-        raise UsageError(f"{args.spec} has no design: section (variables, constraints, objective); see "
-                         f"sweeps/envelope.yaml")
-    say = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
-    if spec.envelope.skipped:
-        say(f"note: {_skip_note(spec)}")
-    rec = D.run_design(spec, jobs=args.jobs, progress=not args.quiet, out_dir=args.out, log=say)
+    rec = api.design(args.spec, out=args.out, jobs=args.jobs, progress=not args.quiet, log=_say(args))
     if not args.quiet:
-        print("\n".join(D.summary_lines(rec)))
+        print("\n".join(summary_lines(rec)))
     return 0
 
 
@@ -259,19 +242,15 @@ def add_sensitivity_parser(sub) -> argparse.ArgumentParser:
 
 
 def cmd_sensitivity(args: argparse.Namespace) -> int:
-    from fencesweep.study import sensitivity as SA
+    from fencesweep.study.sensitivity import summary_lines
 
     if args.jobs is not None and args.jobs < 1:
         raise UsageError(f"--jobs {args.jobs} is not allowed: --jobs must be >= 1")
     if args.out is not None and not args.out.endswith(".parquet"):
         raise UsageError(f"--out {args.out!r} must end with .parquet")
-    spec = specfile.load(args.spec)
-    if spec.sensitivity is None:
-        raise UsageError(f"{args.spec} has no sensitivity: section; see sweeps/sensitivity.yaml")
-    say = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
-    df = SA.run(spec, jobs=args.jobs, progress=not args.quiet, out=args.out, log=say)
+    df = api.sensitivity(args.spec, out=args.out, jobs=args.jobs, progress=not args.quiet, log=_say(args))
     if not args.quiet:
-        print("\n".join(SA.summary_lines(df)))
+        print("\n".join(summary_lines(df)))
     return 0
 
 
@@ -303,60 +282,6 @@ def cmd_plot_design(args: argparse.Namespace) -> int:
     except MissingTable as exc:
         raise UsageError(str(exc)) from None
     return 0
-
-
-def _dry_run(spec: S.Spec, out: Path, args: argparse.Namespace) -> int:
-    import joblib
-
-    jobs = args.jobs or joblib.cpu_count()
-    problem = sweep.plan_size_problem(spec)
-    if problem:  # count only: planning would not fit in memory
-        print(f"{spec.path or 'spec'}: scene {spec.scene}, {spec.n_scenes} scenes ({spec.shape_text()}) -> {out}")
-        print("  distinct model runs: not counted (planning them would not fit in memory)")
-        print(f"  a real run would stop before it starts: {problem}")
-        return 0
-    plan = sweep.make_plan(spec, progress=not args.quiet)
-    work = sweep.work_root(out) / plan.salt[:16]
-    if plan.chunk_size is None and not args.no_resume:
-        plan.chunk_size = sweep.recorded_chunk_size(work)
-    lines = sweep.describe_plan(plan, out)
-    try:
-        t_warm = sweep.warm_up(plan)
-        per_run, k = sweep.time_sample(plan)
-    except RuntimeError as exc:
-        print("\n".join(lines))
-        print(f"  estimated time: unavailable ({exc})")
-        return 0
-    if plan.chunk_size is None:
-        plan.chunk_size = sweep.auto_chunk_size(plan.n_models, per_run)
-        lines = sweep.describe_plan(plan, out)
-    print("\n".join(lines))
-    if not args.overwrite:
-        try:
-            sweep.check_output(spec, out)
-        except UsageError as exc:
-            print(f"  note: a real run would stop before it starts: {exc}")
-    done = [] if args.no_resume else sweep.chunks_done(plan, work)
-    n_pending = plan.n_models - sum(len(plan.chunk_models(c)) for c in done)
-    if done:
-        print(f"  already done: {len(done)} chunks in {work}")
-    workers = sweep.local_jobs(jobs, per_run * n_pending) if args.backend == "loky" else None
-    est = per_run * n_pending / (workers or 1)
-    print(f"  engine: warm-up {t_warm:.2f} s; {per_run * 1e3:.3g} ms per run (timed on {k} runs)")
-    if workers:
-        print(f"  estimated time on {workers} job{'s' if workers > 1 else ''}: {_human(est)} "
-              f"for {n_pending} runs")
-    else:
-        print(f"  estimated time: {_human(est)} of work for {n_pending} runs, divided by the cluster's workers")
-    return 0
-
-
-def _human(seconds: float) -> str:
-    if seconds < 90:
-        return f"{seconds:.1f} s"
-    if seconds < 5400:
-        return f"{seconds / 60:.1f} min"
-    return f"{seconds / 3600:.1f} h"
 
 
 def add_plot_parser(sub) -> argparse.ArgumentParser:

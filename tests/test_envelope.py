@@ -10,6 +10,7 @@ import pytest
 from fencesweep.study import envelope as E
 from fencesweep.study import spec as S
 from fencesweep.study import specfile
+from fencesweep.study import plan as PL
 from fencesweep.study import sweep
 from fencesweep.cli import main
 
@@ -130,7 +131,7 @@ def test_summarize_margins_and_binding():
 
 def test_envelope_sweep_plan_counts_every_load(tmp_path):
     sp = load(BOX)
-    plan = sweep.make_plan(sp)
+    plan = PL.make_plan(sp)
     assert plan.n_scenes == 2 * len(sp.envelope.loads) == plan.n_models
 
 

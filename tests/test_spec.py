@@ -219,27 +219,27 @@ def test_bad_spec_is_rejected_with_key_value_and_allowed(text, parts):
 
 
 def test_spec_error_message_names_the_parameter_for_an_invalid_start():
-    from fencesweep.study import sweep
+    from fencesweep.study import plan as PL
 
     sp = load("grid: {dP: [0, 0.5, 0.7]}")  # long default load: 0.7 + 0.1 > P_max
     with pytest.raises(S.SpecError) as info:
-        sweep.make_plan(sp)
+        PL.make_plan(sp)
     msg = str(info.value)
     assert "scene #2 (dP = 0.7)" in msg and "P_max = 0.7" in msg and "dP must be <= 0.6" in msg
 
 
 def test_psi_giving_K2_out_of_range_is_reported_up_front():
-    from fencesweep.study import sweep
+    from fencesweep.study import plan as PL
 
     sp = load("params: {Psi: 0.01}\ngrid: {B2: [10, 1000]}")
     with pytest.raises(S.SpecError) as info:
-        sweep.make_plan(sp)
+        PL.make_plan(sp)
     assert "scene #1 (B2 = 1000.0)" in str(info.value) and "Psi = 0.01" in str(info.value)
     assert "K2 must be" in str(info.value)
 
 
 def test_invalid_skip_drops_bad_starts_and_reports_them():
-    from fencesweep.study import sweep
+    from fencesweep.study import plan as PL
 
     sp = load("""
         invalid: skip
@@ -247,7 +247,7 @@ def test_invalid_skip_drops_bad_starts_and_reports_them():
           dP: [0.0, 0.3, 0.6]
           phi0: [0.0, 0.5]
         """)
-    plan = sweep.make_plan(sp)
+    plan = PL.make_plan(sp)
     # long load (0.7 x 0.1): at phi0 = 0.5 it spans 0.7 sin 0.5 + 0.1 cos 0.5 = 0.42 in y
     assert plan.skipped == 2 and plan.n_scenes == 6
     assert list(plan.row_model < 0) == [False, False, False, True, False, True]

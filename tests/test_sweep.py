@@ -21,7 +21,8 @@ import pytest
 
 from fencesweep.model import simulate as api
 from fencesweep import cli
-from fencesweep.study import store, sweep
+from fencesweep.study import assemble, compute, output, runs, store, sweep
+from fencesweep.study import plan as PL
 from fencesweep.model import params as P
 from fencesweep.model import results as R
 from fencesweep.study import spec as S
@@ -58,13 +59,13 @@ class Counting:
 
     def __init__(self, monkeypatch):
         self.calls = []
-        real = sweep.run_models
+        real = runs.run_models
 
         def counting(scene, vals_list, simulate=None):
             self.calls += [P.model_key(v) for v in vals_list]
             return real(scene, vals_list, simulate)
 
-        monkeypatch.setattr(sweep, "run_models", counting)
+        monkeypatch.setattr(runs, "run_models", counting)
 
 
 SPEC = """
@@ -112,7 +113,7 @@ def interrupted_run(monkeypatch, tmp_path, after: int, **kw) -> list:
 # ------------------------------------------------------------------ plan and dedup
 def test_dedup_simulates_each_model_once_and_fills_all_rows(tmp_path, monkeypatch):
     sp = spec()
-    plan = sweep.make_plan(sp)
+    plan = PL.make_plan(sp)
     # rigid: B2, K2 unused -> 1 run per case; flexible: 5 x 2 per case
     assert sp.n_scenes == 2 * 2 * 5 * 2 == 40
     assert plan.n_models == 2 * (1 + 10) == 22
@@ -192,14 +193,14 @@ def test_same_table_bit_for_bit_for_1_and_2_jobs(tmp_path):
     b = run(tmp_path, "two.parquet", jobs=2, serial_below=0.0)  # really on 2 loky workers
     assert a.out.read_bytes() == b.out.read_bytes()
     pd.testing.assert_frame_equal(pd.read_parquet(a.out), pd.read_parquet(b.out))
-    assert not sweep.work_root(a.out).exists()  # the work directory is removed when done
+    assert not output.work_root(a.out).exists()  # the work directory is removed when done
     assert gc.get_freeze_count() == 0  # the objects frozen while the forked workers lived are collectable again
 
 
 def test_same_table_from_loky_workers(tmp_path, monkeypatch):
     """Where the workers are not forked (loky: fresh processes) the table is the same."""
     ref = run(tmp_path, "ref.parquet")
-    monkeypatch.setattr(sweep, "START_METHOD", "loky")
+    monkeypatch.setattr(compute, "START_METHOD", "loky")
     res = run(tmp_path, "loky.parquet", jobs=2, serial_below=0.0)
     assert res.jobs == 2 and res.out.read_bytes() == ref.out.read_bytes()
 
@@ -207,12 +208,12 @@ def test_same_table_from_loky_workers(tmp_path, monkeypatch):
 def test_same_table_without_the_planning_pass_parameter_blocks(tmp_path):
     """A plan made beforehand (no parameter blocks in the work directory): assembly resolves them."""
     ref = run(tmp_path, "ref.parquet")
-    res = run(tmp_path, "planned.parquet", plan=sweep.make_plan(spec()))
+    res = run(tmp_path, "planned.parquet", plan=PL.make_plan(spec()))
     assert res.out.read_bytes() == ref.out.read_bytes()
 
 
 def test_model_key_digest_does_not_depend_on_string_identity():
-    digest = sweep._key_digester()
+    digest = PL._key_digester()
     literal, flexible = "flexible", "".join(["flex", "ible"])  # equal, not the same object
     assert flexible is not literal
     a = digest(("cycle", ("drive", "flexible"), ("contact_law", "flexible"), ("B2", 72.0)))
@@ -228,7 +229,7 @@ def test_spec_error_in_planning_leaves_no_work_directory(tmp_path):
     for jobs in (1, 2):
         with pytest.raises(S.SpecError, match="dP = 0.7"):
             run(tmp_path, text=text, jobs=jobs, serial_below=0.0)
-        assert not sweep.work_root(tmp_path / "t.parquet").exists()
+        assert not output.work_root(tmp_path / "t.parquet").exists()
 
 
 def test_impact_scene_columns(tmp_path):
@@ -283,10 +284,10 @@ def test_engine_failing_at_warm_up_stops_before_dispatch(tmp_path):
 # ------------------------------------------------------------------ streaming and resume
 def test_killed_sweep_resumes_computing_only_missing_chunks(tmp_path, monkeypatch):
     ref = run(tmp_path, "ref.parquet")
-    plan = sweep.make_plan(spec())
+    plan = PL.make_plan(spec())
     out = tmp_path / "t.parquet"
     written = [p.name for p in interrupted_run(monkeypatch, tmp_path, 3, simulate=fake_engine)]
-    work = sweep.work_root(out) / plan.salt[:16]
+    work = output.work_root(out) / plan.salt[:16]
     assert sorted(p.name for p in work.glob("chunk-*.parquet")) == sorted(written)
     assert not out.exists() and not list(work.glob(".fencesweep-tmp-*"))
 
@@ -298,7 +299,7 @@ def test_killed_sweep_resumes_computing_only_missing_chunks(tmp_path, monkeypatc
 
 
 def test_no_resume_recomputes_everything(tmp_path, monkeypatch):
-    plan = sweep.make_plan(spec())
+    plan = PL.make_plan(spec())
     interrupted_run(monkeypatch, tmp_path, 2)
     res = run(tmp_path, resume=False)
     assert res.reused == 0 and res.computed == plan.n_chunks
@@ -323,9 +324,9 @@ def test_auto_chunk_size_is_recorded_and_reused_on_resume(tmp_path, monkeypatch)
     text = SPEC.replace("    chunk_size: 4\n", "")
     ref = run(tmp_path, "ref.parquet", text=text)
     # a fake run takes microseconds: chunks are capped to give MIN_CHUNKS of them
-    assert ref.n_chunks == math.ceil(22 / math.ceil(22 / sweep.MIN_CHUNKS))
+    assert ref.n_chunks == math.ceil(22 / math.ceil(22 / runs.MIN_CHUNKS))
     interrupted_run(monkeypatch, tmp_path, 3, text=text)
-    monkeypatch.setattr(sweep, "auto_chunk_size", lambda *a: 5)  # the timing would differ now
+    monkeypatch.setattr(runs, "auto_chunk_size", lambda *a: 5)  # the timing would differ now
     res = run(tmp_path, text=text)
     assert res.reused == 3 and res.n_chunks == ref.n_chunks
     assert res.out.read_bytes() == ref.out.read_bytes()
@@ -335,11 +336,11 @@ def test_auto_chunk_size_is_recorded_and_reused_on_resume(tmp_path, monkeypatch)
 
 
 def test_chunk_name_depends_on_spec_and_contents():
-    a = sweep.make_plan(spec())
-    b = sweep.make_plan(spec(SPEC.replace("K2: [200, 570]", "K2: [200, 571]")))
+    a = PL.make_plan(spec())
+    b = PL.make_plan(spec(SPEC.replace("K2: [200, 570]", "K2: [200, 571]")))
     assert a.chunk_name(0) != b.chunk_name(0)
     assert a.chunk_name(0) != a.chunk_name(1)
-    assert a.chunk_name(0) == sweep.make_plan(spec()).chunk_name(0)
+    assert a.chunk_name(0) == PL.make_plan(spec()).chunk_name(0)
 
 
 def test_truncated_chunk_is_recomputed(tmp_path, monkeypatch):
@@ -366,8 +367,8 @@ def sweep_to_kill(tmp_path, out: Path, **kw) -> list:
 
 def test_process_killed_mid_sweep_then_rerun(tmp_path, monkeypatch):
     out = tmp_path / "t.parquet"
-    plan = sweep.make_plan(spec())
-    work = sweep.work_root(out) / plan.salt[:16]
+    plan = PL.make_plan(spec())
+    work = output.work_root(out) / plan.salt[:16]
     proc = subprocess.Popen(sweep_to_kill(tmp_path, out, jobs=1))
     try:
         polls = 0  # at most 12000 polls 5 ms apart (~60 s) for two chunks to appear
@@ -394,8 +395,8 @@ def test_process_with_workers_killed_mid_sweep_then_rerun(tmp_path, monkeypatch)
     """SIGKILL of a sweep on 2 workers: its workers exit, what they wrote is reused, the table is whole."""
     psutil = pytest.importorskip("psutil")
     out = tmp_path / "t.parquet"
-    plan = sweep.make_plan(spec())
-    work = sweep.work_root(out) / plan.salt[:16]
+    plan = PL.make_plan(spec())
+    work = output.work_root(out) / plan.salt[:16]
     proc = subprocess.Popen(sweep_to_kill(tmp_path, out, jobs=2, serial_below=0.0))
     try:
         polls = 0
@@ -440,8 +441,8 @@ def test_cli_interrupted_names_the_saved_chunks(tmp_path, monkeypatch, capsys):
 def test_assembly_memory_is_bounded_by_blocks(tmp_path, monkeypatch):
     """Small blocks and a tiny chunk cache give the same table (the streaming path)."""
     ref = run(tmp_path, "ref.parquet")
-    monkeypatch.setattr(sweep, "ASSEMBLY_BLOCK", 7)
-    monkeypatch.setattr(sweep, "CHUNK_CACHE", 1)
+    monkeypatch.setattr(PL, "ASSEMBLY_BLOCK", 7)
+    monkeypatch.setattr(assemble, "CHUNK_CACHE", 1)
     res = run(tmp_path)
     pd.testing.assert_frame_equal(pd.read_parquet(ref.out), pd.read_parquet(res.out))
     assert pq.ParquetFile(res.out).metadata.num_row_groups == math.ceil(40 / 7)
@@ -486,7 +487,7 @@ def test_cli_grid_refuses_to_replace_another_specs_table(tmp_path, monkeypatch, 
     err = capsys.readouterr().err
     assert f"{out} holds the results of another spec, {a} (spec hash {spec().hash[:12]})" in err
     assert f"this is {b}" in err and "--overwrite" in err and "Traceback" not in err
-    assert out.read_bytes() == written and not sweep.work_root(out).exists()  # nothing changed
+    assert out.read_bytes() == written and not output.work_root(out).exists()  # nothing changed
     # the dry run says so too, and the same spec may replace its own table
     assert cli.main(["grid", str(b), "--out", str(out), "--dry-run"]) == 0
     assert "a real run would stop before it starts" in capsys.readouterr().out
@@ -523,7 +524,7 @@ def test_cli_grid_too_large_for_memory_counts_and_stops_before_it_starts(tmp_pat
         raise AssertionError("planned a spec too large to plan")
 
     monkeypatch.setattr(resources, "available_memory", lambda: 16 * 2**30)
-    monkeypatch.setattr(sweep, "make_plan", never)
+    monkeypatch.setattr(PL, "make_plan", never)
     path, out = tmp_path / "huge.yaml", tmp_path / "huge.parquet"
     path.write_text(textwrap.dedent(HUGE))
     tracemalloc.start()
@@ -536,7 +537,7 @@ def test_cli_grid_too_large_for_memory_counts_and_stops_before_it_starts(tmp_pat
     assert peak < 20 * 2**20  # the 1e10 scenes are counted, not allocated
     assert "10000000000 scenes (B2 100 x K2 100 x m1 100 x v 100 x mu1 100)" in text
     assert "distinct model runs: not counted" in text
-    most = 16 * 2**30 // sweep.PLAN_BYTES_PER_SCENE
+    most = 16 * 2**30 // PL.PLAN_BYTES_PER_SCENE
     assert cli.main(["grid", str(path), "--out", str(out), "--jobs", "1"]) == 2
     err = capsys.readouterr().err
     for part in (f"{path} expands to 10000000000 scenes", "1,490.1 GiB of memory", "16.0 GiB available",
@@ -547,18 +548,18 @@ def test_cli_grid_too_large_for_memory_counts_and_stops_before_it_starts(tmp_pat
 
 def test_plan_size_limit_follows_the_memory_available(tmp_path, monkeypatch):
     sp = spec()  # 2 cases x 2 x 5 x 2 = 40 scenes
-    monkeypatch.setattr(resources, "available_memory", lambda: 40 * sweep.PLAN_BYTES_PER_SCENE)
-    assert sweep.plan_size_problem(sp) is None and sweep.make_plan(sp).n_scenes == 40
-    monkeypatch.setattr(resources, "available_memory", lambda: 39 * sweep.PLAN_BYTES_PER_SCENE)
-    msg = sweep.plan_size_problem(sp)
+    monkeypatch.setattr(resources, "available_memory", lambda: 40 * PL.PLAN_BYTES_PER_SCENE)
+    assert PL.plan_size_problem(sp) is None and PL.make_plan(sp).n_scenes == 40
+    monkeypatch.setattr(resources, "available_memory", lambda: 39 * PL.PLAN_BYTES_PER_SCENE)
+    msg = PL.plan_size_problem(sp)
     assert "at most 39 scenes" in msg and "one spec per value of cases gives 2 specs of 20 scenes" in msg
     with pytest.raises(UsageError, match="expands to 40 scenes"):
-        sweep.make_plan(sp)
+        PL.make_plan(sp)
     with pytest.raises(UsageError, match="expands to 40 scenes"):
         run(tmp_path)
     assert list(tmp_path.iterdir()) == []
     monkeypatch.setattr(resources, "available_memory", lambda: None)  # unknown: no limit
-    assert sweep.plan_size_problem(sp) is None
+    assert PL.plan_size_problem(sp) is None
 
 
 def test_write_trajectory_round_trip(tmp_path):

@@ -4,200 +4,36 @@ A spec names one `scene`, a base parameter set (a named `case` and/or `params`),
 axes that vary: `grid` (Cartesian product), `zip` (axes that vary together) and `cases`
 (named or explicit parameter sets crossed with the rest). Scene number i is decoded from
 i by mixed radix (cases outermost, then the axes in the order written, the last fastest),
-so no list of scenes is ever held in memory.
+so no list of scenes is ever held in memory. An axis's values are expanded and checked by
+axes.py; `parse` reads the spec's sections but `design:` and `sensitivity:` (specfile.py reads
+a whole spec from YAML).
 
 Everything wrong in a spec raises `SpecError` (a params.ParameterError) naming the key,
 the value and what is allowed. Values are checked one by one when the spec is read;
 combinations (an invalid start, MODEL.md §1) when every scene is resolved, before any
-run (see sweep.plan).
+run (see plan.make_plan).
 """
 from __future__ import annotations
 
-import difflib
 import hashlib
 import json
 import math
 from dataclasses import dataclass, field
 from typing import Any
 
-import numpy as np
-import yaml
-
 from fencesweep.model import params as P
 from fencesweep.study import envelope as E
-
-#: derived inputs: name -> (unit, meaning). Psi fixes K2 from B2 and I2 (MODEL.md §3).
-DERIVED_INPUTS = {"Psi": ("-", "relative damping B2 / (2 sqrt(K2 I2)); fixes K2 = (B2 / (2 Psi))^2 / I2")}
-INPUT_NAMES = P.NAMES + tuple(DERIVED_INPUTS)
+from fencesweep.study.axes import Axis, SpecError, axis_values, check_input, did_you_mean, round_value
 
 TOP_KEYS = ("scene", "case", "params", "grid", "zip", "cases", "output", "invalid", "chunk_size",
             "description", "loads", "envelope", "design", "sensitivity")
-AXIS_FORMS = ("linspace", "logspace", "range")
 INVALID_POLICIES = ("error", "skip")
-MAX_AXIS = 10_000_000
-_SIG = 12  # generated axis values are rounded to 12 significant digits (0.1 steps give 0.3)
-
-
-class SpecError(P.ParameterError):
-    """A bad sweep spec: names the key, the value and what is allowed."""
-
-
-def _did_you_mean(word: str, choices) -> str:
-    near = difflib.get_close_matches(str(word), list(choices), n=1, cutoff=0.5)
-    return f"; did you mean {near[0]!r}?" if near else ""
-
-
-def _round(x: float) -> float:
-    return float(f"{x:.{_SIG}g}")
-
-
-# ----------------------------------------------------------------------------------------
-# YAML with duplicate keys rejected (PyYAML silently keeps the last one)
-class YamlLoader(yaml.SafeLoader):
-    """PyYAML's safe loader with duplicate keys rejected."""
-
-
-def _construct_mapping(loader, node, deep=False):
-    seen = set()
-    for key_node, _ in node.value:
-        key = loader.construct_object(key_node, deep=deep)
-        if key in seen:
-            raise SpecError(f"key {key!r} appears twice in the same mapping "
-                            f"(line {key_node.start_mark.line + 1}); give each key once")
-        seen.add(key)
-    return yaml.SafeLoader.construct_mapping(loader, node, deep=deep)
-
-
-YamlLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
-
-
-# ----------------------------------------------------------------------------------------
-def check_input(name: str, value: Any, where: str) -> Any:
-    """Check one input value (a §12 parameter or a derived input); return it normalised."""
-    if name not in INPUT_NAMES:
-        raise SpecError(f"{where}: unknown parameter {name!r}{_did_you_mean(name, INPUT_NAMES)} "
-                        f"(parameters of MODEL.md §12: {', '.join(P.NAMES)}; derived: "
-                        f"{', '.join(DERIVED_INPUTS)})")
-    if isinstance(value, (list, dict)):
-        raise SpecError(f"{where} = {value!r}: one value is expected here; axes go under grid or zip")
-    numeric = name in DERIVED_INPUTS or P.BY_NAME[name].kind != "choice"
-    if numeric and isinstance(value, str):
-        try:  # YAML 1.1 reads 4e6 (no dot) as a string
-            value = float(value)
-        except ValueError:
-            pass
-    if name == "Psi":
-        ok = (isinstance(value, (int, float)) and not isinstance(value, bool)
-              and math.isfinite(value) and value > 0)
-        if not ok:
-            raise SpecError(f"{where}: Psi = {value!r} is not allowed: Psi must be a number with 0 < Psi")
-        return float(value)
-    try:
-        return P.check_value(name, value)
-    except P.ParameterError as exc:
-        raise SpecError(f"{where}: {exc}") from None
-
-
-def _form_args(form: str, args: Any, where: str) -> tuple:
-    keys = ("start", "stop", "step") if form == "range" else ("start", "stop", "num")
-    shape = f"{{{form}: [{', '.join(keys)}]}} or {{{form}: {{{': .., '.join(keys)}: ..}}}}"
-    if isinstance(args, dict):
-        bad = [k for k in args if k not in keys]
-        if bad:
-            raise SpecError(f"{where}.{form}: unknown key {bad[0]!r}{_did_you_mean(bad[0], keys)}; "
-                            f"expected {shape}")
-        missing = [k for k in keys if k not in args]
-        if missing:
-            raise SpecError(f"{where}.{form}: missing {missing[0]!r}; expected {shape}")
-        args = [args[k] for k in keys]
-    if not isinstance(args, (list, tuple)) or len(args) != 3:
-        raise SpecError(f"{where}.{form} = {args!r}: expected {shape}")
-    out = []
-    for k, a in zip(keys, args):
-        x = P.as_finite_number(a)
-        if x is None:
-            raise SpecError(f"{where}.{form}: {k} = {a!r} is not a finite number; expected {shape}")
-        out.append(x if isinstance(a, str) else a)  # a number stays as written (int or float)
-    return tuple(out)
-
-
-def axis_values(name: str, raw: Any, where: str) -> list:  # noqa: C901 (19 > 10: existing code)
-    """Expand one axis (a list, or {linspace|logspace|range: ...}) and check every value."""
-    allowed = ("a list of values, {linspace: [start, stop, num]}, {logspace: [start, stop, num]} "
-               "(geometric, both > 0) or {range: [start, stop, step]} (stop included)")
-    if name not in INPUT_NAMES:
-        raise SpecError(f"{where}: unknown parameter {name!r}{_did_you_mean(name, INPUT_NAMES)} "
-                        f"(parameters of MODEL.md §12: {', '.join(P.NAMES)}; derived: "
-                        f"{', '.join(DERIVED_INPUTS)})")
-    is_choice = name not in DERIVED_INPUTS and P.BY_NAME[name].kind == "choice"
-    if isinstance(raw, list):
-        if not raw:
-            raise SpecError(f"{where} = []: the axis is empty; give at least one value ({allowed})")
-        values = raw
-    elif isinstance(raw, dict):
-        if len(raw) != 1:
-            raise SpecError(f"{where} = {raw!r}: expected exactly one of {', '.join(AXIS_FORMS)}, "
-                            f"got keys {', '.join(map(str, raw))}")
-        form, args = next(iter(raw.items()))
-        if form not in AXIS_FORMS:
-            raise SpecError(f"{where}: unknown axis form {form!r}{_did_you_mean(form, AXIS_FORMS)}; "
-                            f"an axis is {allowed}")
-        if is_choice:
-            raise SpecError(f"{where}: {name} takes {P.BY_NAME[name].allowed()}, not a {form}; "
-                            f"give a list, e.g. {list(P.BY_NAME[name].choices)}")
-        a, b, n = _form_args(form, args, where)
-        if form in ("linspace", "logspace"):
-            if isinstance(n, float) and not n.is_integer():
-                raise SpecError(f"{where}.{form}: num = {n!r} must be a whole number >= 1")
-            n = int(n)
-            if n < 1:
-                raise SpecError(f"{where}.{form}: num = {n!r} gives an empty axis; num must be >= 1")
-            if n > MAX_AXIS:
-                raise SpecError(f"{where}.{form}: num = {n!r} is too large (at most {MAX_AXIS})")
-            if form == "linspace":
-                values = [_round(x) for x in np.linspace(a, b, n).tolist()]
-            else:
-                if a <= 0 or b <= 0:
-                    raise SpecError(f"{where}.logspace: start = {a!r}, stop = {b!r}: both must be > 0 "
-                                    f"(the endpoints are values, spaced geometrically, not exponents)")
-                values = [_round(x) for x in np.geomspace(a, b, n).tolist()]
-        else:  # range: start, start + step, ... up to stop included
-            if n == 0:
-                raise SpecError(f"{where}.range: step = 0 is not allowed; step must be non-zero")
-            span = (b - a) / n
-            if span < -1e-9:
-                raise SpecError(f"{where}.range = [{a!r}, {b!r}, {n!r}] is empty: with step {n!r} "
-                                f"stop must be {'>=' if n > 0 else '<='} start")
-            count = int(math.floor(span + 1e-9)) + 1
-            if count > MAX_AXIS:
-                raise SpecError(f"{where}.range gives {count} values, too many (at most {MAX_AXIS})")
-            values = [_round(a + k * n) for k in range(count)]
-    else:
-        raise SpecError(f"{where} = {raw!r} is a single value: an axis is {allowed}; "
-                        f"a fixed value goes under params")
-    out = []
-    for k, v in enumerate(values):
-        out.append(check_input(name, v, f"{where}[{k}]"))
-    if len(set(out)) != len(out):
-        dup = next(v for v in out if out.count(v) > 1)
-        raise SpecError(f"{where}: the value {dup!r} appears twice; every value of an axis must differ")
-    return out
-
-
-@dataclass(frozen=True)
-class Axis:
-    """One dimension of the sweep: a grid axis (one name) or a zip group (several names)."""
-
-    names: tuple
-    values: tuple  # values[k] is a tuple, one value per name
-    where: str
-
-    def __len__(self) -> int:
-        return len(self.values)
 
 
 @dataclass
 class Spec:
+    """A checked sweep spec: its scene, base parameters, axes and cases (and its sections)."""
+
     scene: str
     case: str | None
     params: dict
@@ -305,7 +141,7 @@ def resolve_inputs(scene: str, case: str | None, over: dict, loads: list | None 
     if "K2" in over:  # caught when the spec is read; kept for direct callers
         raise SpecError(f"K2 = {over['K2']!r} and Psi = {psi!r} are both set: Psi fixes K2; set one of them")
     base = P.resolve(scene, case, **over)
-    K2 = _round((base["B2"] / (2.0 * psi)) ** 2 / base["I2"])  # Psi = B2 / (2 sqrt(K2 I2)), MODEL.md §3
+    K2 = round_value((base["B2"] / (2.0 * psi)) ** 2 / base["I2"])  # Psi = B2 / (2 sqrt(K2 I2)), MODEL.md §3
     try:
         return P.resolve(scene, case, **over, K2=K2)
     except P.ParameterError as exc:
@@ -319,7 +155,6 @@ def psi_of(vals: dict) -> float:
     return vals["B2"] / (2.0 * math.sqrt(k)) if k > 0 else math.nan
 
 
-# ----------------------------------------------------------------------------------------
 def _mapping(raw: Any, where: str, what: str) -> dict:
     if raw is None:
         return {}
@@ -330,7 +165,7 @@ def _mapping(raw: Any, where: str, what: str) -> dict:
 
 def _check_case_name(name: Any, where: str) -> str:
     if not isinstance(name, str) or name not in P.CASES:
-        raise SpecError(f"{where} = {name!r} is not a named case{_did_you_mean(name, P.CASES)} "
+        raise SpecError(f"{where} = {name!r} is not a named case{did_you_mean(name, P.CASES)} "
                         f"(named cases: {', '.join(P.CASES)})")
     return name
 
@@ -363,11 +198,11 @@ def _scene_and_case(data: Any) -> tuple:
         raise SpecError(f"a spec is a mapping with keys {', '.join(TOP_KEYS)}; got {type(data).__name__}")
     for key in data:
         if key not in TOP_KEYS:
-            raise SpecError(f"unknown key {key!r} at the top of the spec{_did_you_mean(key, TOP_KEYS)} "
+            raise SpecError(f"unknown key {key!r} at the top of the spec{did_you_mean(key, TOP_KEYS)} "
                             f"(allowed: {', '.join(TOP_KEYS)})")
     scene = data.get("scene", "cycle")
     if scene not in P.SCENES:
-        raise SpecError(f"scene = {scene!r} is not allowed{_did_you_mean(scene, P.SCENES)} (scene must be one "
+        raise SpecError(f"scene = {scene!r} is not allowed{did_you_mean(scene, P.SCENES)} (scene must be one "
                         f"of {', '.join(P.SCENES)})")
     case = data.get("case")
     if case is not None:
@@ -484,7 +319,7 @@ def _options(data: dict) -> tuple:
         raise SpecError(f"output = {output!r}: expected a path ending in .parquet")
     invalid = data.get("invalid", "error")
     if invalid not in INVALID_POLICIES:
-        raise SpecError(f"invalid = {invalid!r} is not allowed{_did_you_mean(invalid, INVALID_POLICIES)} "
+        raise SpecError(f"invalid = {invalid!r} is not allowed{did_you_mean(invalid, INVALID_POLICIES)} "
                         f"(one of {', '.join(INVALID_POLICIES)}; skip drops the scenes that params.resolve "
                         f"rejects as a combination, e.g. an invalid start, and reports them)")
     chunk = data.get("chunk_size")

@@ -1,5 +1,6 @@
 """A whole sweep spec from YAML: the spec itself (spec.py) and its `design:` and `sensitivity:`
-sections (design.py, sensitivity.py), which build on it (sweeps/README.md)."""
+sections (design_section.py, sensitivity.py), which build on it (sweeps/README.md). YAML is
+read with duplicate keys rejected (PyYAML silently keeps the last one)."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -8,9 +9,27 @@ from typing import Any
 import yaml
 
 from fencesweep.model import params as P
-from fencesweep.study import design as D
+from fencesweep.study import design_section as D
 from fencesweep.study import sensitivity as SA
 from fencesweep.study import spec as S
+
+
+class YamlLoader(yaml.SafeLoader):
+    """PyYAML's safe loader with duplicate keys rejected."""
+
+
+def _construct_mapping(loader, node, deep=False):
+    seen = set()
+    for key_node, _ in node.value:
+        key = loader.construct_object(key_node, deep=deep)
+        if key in seen:
+            raise S.SpecError(f"key {key!r} appears twice in the same mapping "
+                              f"(line {key_node.start_mark.line + 1}); give each key once")
+        seen.add(key)
+    return yaml.SafeLoader.construct_mapping(loader, node, deep=deep)
+
+
+YamlLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
 
 
 def parse(data: Any, source: str = "", path: str | None = None) -> S.Spec:
@@ -29,7 +48,7 @@ def parse(data: Any, source: str = "", path: str | None = None) -> S.Spec:
 def loads(text: str, path: str | None = None) -> S.Spec:
     """A spec from YAML text."""
     try:
-        data = yaml.load(text, Loader=S.YamlLoader)
+        data = yaml.load(text, Loader=YamlLoader)
     except S.SpecError:
         raise
     except yaml.YAMLError as exc:

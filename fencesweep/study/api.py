@@ -1,0 +1,237 @@
+"""The Python API of the studies: one function per computing command of the CLI, named as its
+verb and exported from `fencesweep` (README, Python API for sweeps). The CLI parses its
+arguments, calls these and prints what they return.
+
+* grid(spec, ...) runs a sweep (sweep.run_sweep) and returns its table as written, read back
+  (store.read_table: attrs "units" and "fencesweep", the provenance), with attrs "run" (what
+  the run did). An envelope spec also gets its per-design-point table (envelope.write_points),
+  whose path is attrs "points_path" and which points(df) reads. run_grid is the same run
+  without reading the table back (what `fencesweep grid` calls: a table may not fit in memory).
+* estimate(spec, ...) is `fencesweep grid --dry-run`: an estimate.Estimate, nothing written.
+* design(spec, ...) and sensitivity(spec, ...) run those studies (design.run_design,
+  sensitivity.run) and return the recommendation (a dict) and the indices (a DataFrame).
+
+`spec` is a YAML file (its path), the parsed YAML of a spec (a dict) or a spec.Spec. Bad input
+raises before anything is written: ParameterError (SpecError, a subclass, for a spec: it names
+the key, the value and what is allowed) or UsageError. `log` receives the notes a user should see
+(loads or scenes skipped, unused axes, resuming: what the CLI prints on stderr); by default
+nothing. Ctrl-C during a sweep raises SweepInterrupted (a KeyboardInterrupt): the chunks
+finished are saved, and the same call again computes only the rest.
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any, Callable
+
+from fencesweep.errors import UsageError
+from fencesweep.study import envelope as E
+from fencesweep.study import output, specfile, store, sweep
+from fencesweep.study import spec as S
+from fencesweep.study.estimate import Estimate
+from fencesweep.study.estimate import estimate as _estimate
+
+__all__ = ["grid", "run_grid", "points", "estimate", "design", "sensitivity", "load_spec", "SweepInterrupted"]
+
+BACKENDS = ("loky", "dask")
+
+
+class SweepInterrupted(KeyboardInterrupt):
+    """Ctrl-C during a sweep: `saved` of `total` chunks (None: not known) are saved in `work`."""
+
+    def __init__(self, work: Path, saved: int, total: int | None):
+        self.work, self.saved, self.total = work, saved, total
+        self.saved_text = f"interrupted; {saved}{f' of {total}' if total else ''} chunks are saved in {work}"
+        super().__init__(f"{self.saved_text}; the same call again (same spec and out) computes only the rest")
+
+
+def _nothing(msg: str) -> None:
+    """The default log."""
+
+
+def load_spec(spec: Any) -> S.Spec:
+    """A spec.Spec from a YAML file's path, the parsed YAML of a spec (a dict) or a Spec."""
+    if isinstance(spec, S.Spec):
+        return spec
+    if isinstance(spec, (str, os.PathLike)):
+        return specfile.load(spec)
+    if isinstance(spec, dict):
+        return specfile.parse(spec, source=_yaml_text(spec))
+    raise TypeError(f"spec must be the path of a YAML spec, a dict (the spec's parsed YAML) or a "
+                    f"fencesweep.study.spec.Spec, not {type(spec).__name__}")
+
+
+def _yaml_text(data: dict) -> str:
+    """The spec's YAML, recorded as the table's spec_source (nothing if it cannot be written)."""
+    import yaml
+
+    try:
+        return yaml.safe_dump(data, sort_keys=False)
+    except yaml.YAMLError:
+        return ""
+
+
+def _check_jobs(jobs: Any, none_ok: bool = True) -> None:
+    if jobs is None and none_ok:
+        return
+    if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
+        raise UsageError(f"jobs = {jobs!r} is not allowed: jobs must be a whole number >= 1"
+                         + (" (or None: all cores)" if none_ok else ""))
+
+
+def _check_out(out: Any) -> None:
+    if out is not None and not str(out).endswith(".parquet"):
+        raise UsageError(f"out = {str(out)!r} must end with .parquet")
+
+
+def _check_backend_name(backend: str) -> None:
+    if backend not in BACKENDS:
+        raise UsageError(f"backend = {backend!r} is not allowed: 'loky' (processes on this machine) or 'dask' "
+                         f"(a Dask cluster, at scheduler = ADDRESS)")
+
+
+def _check_backend(backend: str, scheduler: str | None) -> None:
+    _check_backend_name(backend)
+    if backend == "dask" and not scheduler:
+        raise UsageError("backend = 'dask' needs scheduler = ADDRESS (e.g. 'tcp://HOST:8786')")
+    if scheduler and backend != "dask":
+        raise UsageError("scheduler is only used with backend = 'dask'")
+
+
+def _note_skipped_loads(spec: S.Spec, log: Callable[[str], None]) -> None:
+    if spec.envelope is not None and spec.envelope.skipped:
+        log(f"note: {E._skip_text(spec.envelope, 'cannot start on the belt and are skipped (envelope.invalid: skip)')}")
+
+
+def _out(spec: S.Spec, out: Any) -> Path:
+    return Path(out) if out is not None else output.default_output(spec)
+
+
+def grid(spec: Any, *, out: str | Path | None = None, jobs: int | None = None, resume: bool = True,
+         progress: bool = False, backend: str = "loky", scheduler: str | None = None, overwrite: bool = False,
+         log: Callable[[str], None] | None = None):
+    """Run the sweep of `spec` into `out` (default: the spec's output) and return its table, read
+    back from the Parquet file: row for row what `fencesweep grid` writes.
+
+    `jobs`: local worker processes (None: all cores); `backend` "dask" runs on the cluster at
+    `scheduler`. `resume`: reuse the chunks an interrupted run of the same spec saved. Without
+    `overwrite`, another spec's table or unfinished run at `out` stops the sweep before it starts.
+    df.attrs: "units" ({column: unit}), "fencesweep" (the provenance: spec, hash, versions,
+    counts), "run" (run_grid's record) and, for a spec with an envelope, "points_path" (the
+    per-design-point table: points(df) reads it)."""
+    run = run_grid(spec, out=out, jobs=jobs, resume=resume, progress=progress, backend=backend,
+                   scheduler=scheduler, overwrite=overwrite, log=log)
+    df = store.read_table(run["out"])
+    df.attrs["run"] = run
+    if run["points"] is not None:
+        df.attrs["points_path"] = run["points"]["path"]
+    return df
+
+
+def run_grid(spec: Any, *, out: str | Path | None = None, jobs: int | None = None, resume: bool = True,
+             progress: bool = False, backend: str = "loky", scheduler: str | None = None, overwrite: bool = False,
+             log: Callable[[str], None] | None = None) -> dict:
+    """grid without reading the table back: run the sweep (and, for an envelope, write the
+    per-design-point table) and return what the run did, a plain dict: out, scenes, model_runs,
+    chunks, chunks_computed, chunks_reused, seconds, jobs (None: Dask), failed_runs (runs that
+    raised in the engine: status 'failed: exception ...'), timings, and points (None, or for an
+    envelope its path, design_points, loads, feasible, and the best point: min_margin, binding,
+    best {column: value})."""
+    log = log or _nothing
+    _check_out(out)
+    _check_jobs(jobs)
+    _check_backend(backend, scheduler)
+    sp = load_spec(spec)
+    out = _out(sp, out)
+    _note_skipped_loads(sp, log)
+    try:
+        res = sweep.run_sweep(sp, out, jobs=jobs, resume=resume, backend=backend, scheduler=scheduler,
+                              progress=progress, log=log, overwrite=overwrite)
+    except KeyboardInterrupt:
+        raise SweepInterrupted(*output.saved_chunks(sp, out)) from None
+    return {"out": str(res.out), "scenes": res.n_scenes, "model_runs": res.n_models, "chunks": res.n_chunks,
+            "chunks_computed": res.computed, "chunks_reused": res.reused, "seconds": res.seconds, "jobs": res.jobs,
+            "failed_runs": res.failed_runs, "timings": dict(res.timings),
+            "points": _write_points(sp, res.out) if sp.envelope is not None else None}
+
+
+def _plain(value: Any) -> Any:
+    return value.item() if hasattr(value, "item") else value
+
+
+def _write_points(spec: S.Spec, table: Path) -> dict:
+    """Write an envelope sweep's per-design-point table; a summary of it."""
+    path, pts = E.write_points(spec, table)
+    best = pts.loc[pts["min_margin"].idxmax()]
+    return {"path": str(path), "design_points": len(pts), "loads": len(spec.envelope.loads),
+            "feasible": int(pts["feasible"].sum()), "min_margin": float(best["min_margin"]),
+            "binding": str(best["binding"]), "best": {c: _plain(best[c]) for c in E.design_columns(spec)}}
+
+
+def points(table: Any):
+    """The per-design-point table of an envelope sweep (sweeps/README.md, Envelopes), as a
+    DataFrame: of a table that grid returned (its attrs["points_path"]), or of the per-load
+    table's path (OUT.parquet -> OUT_points.parquet)."""
+    if isinstance(table, (str, os.PathLike)):
+        path = E.points_path(table)
+    else:
+        path = getattr(table, "attrs", {}).get("points_path")
+        if path is None:
+            raise UsageError("this table has no per-design-point table: grid writes one for a spec with an "
+                             "envelope: section, and names it in df.attrs['points_path']")
+    if not Path(path).exists():
+        raise UsageError(f"{path} does not exist: grid writes it for a spec with an envelope: section")
+    return store.read_table(path)
+
+
+def estimate(spec: Any, *, out: str | Path | None = None, jobs: int | None = None, resume: bool = True,
+             backend: str = "loky", overwrite: bool = False, progress: bool = False,
+             log: Callable[[str], None] | None = None) -> Estimate:
+    """What grid would do (`fencesweep grid --dry-run`), writing nothing: the scenes, distinct model
+    runs and chunks, the chunks already done, the engine's warm-up and seconds per run, and the
+    estimated time on `jobs` processes (None: all cores; backend "dask": work in all). Its notes
+    say what a user should know, e.g. that a real run would stop before it starts, and why;
+    Estimate.lines() is the text the CLI prints."""
+    import joblib
+
+    log = log or _nothing
+    _check_out(out)
+    _check_jobs(jobs)
+    _check_backend_name(backend)
+    sp = load_spec(spec)
+    _note_skipped_loads(sp, log)
+    return _estimate(sp, _out(sp, out), jobs or joblib.cpu_count(), resume=resume, backend=backend,
+                     overwrite=overwrite, progress=progress)
+
+
+def design(spec: Any, *, out: str | Path | None = None, jobs: int = 1, progress: bool = False,
+           log: Callable[[str], None] | None = None) -> dict:
+    """`fencesweep design`: search the spec's design variables for the element farthest inside
+    every constraint for every load of its envelope, verify it on a fresh sample and write
+    OUT/recommended.json, comparison.parquet and verify_loads.parquet (OUT: default the design
+    section's output). Returns the recommendation (recommended.json's content)."""
+    from fencesweep.study import design as D
+
+    log = log or _nothing
+    _check_jobs(jobs, none_ok=False)
+    sp = load_spec(spec)
+    if sp.design is None:
+        raise UsageError(f"{sp.path or 'the spec'} has no design: section (variables, constraints, objective); see "
+                         f"sweeps/envelope.yaml")
+    _note_skipped_loads(sp, log)
+    return D.run_design(sp, jobs=jobs, progress=progress, out_dir=out, log=log)
+
+
+def sensitivity(spec: Any, *, out: str | Path | None = None, jobs: int | None = None, progress: bool = False,
+                log: Callable[[str], None] | None = None):
+    """`fencesweep sensitivity`: the Sobol indices (S1, ST) of the spec's sensitivity: outputs to its
+    assumed inputs; runs the sample as a sweep (OUT_runs.parquet, OUT_runs_points.parquet) and
+    writes the indices to OUT (default: the section's output). Returns them as a DataFrame."""
+    from fencesweep.study import sensitivity as SA
+
+    _check_jobs(jobs)
+    _check_out(out)
+    sp = load_spec(spec)
+    if sp.sensitivity is None:
+        raise UsageError(f"{sp.path or 'the spec'} has no sensitivity: section; see sweeps/sensitivity.yaml")
+    return SA.run(sp, jobs=jobs, progress=progress, out=out, log=log or _nothing)

@@ -1,0 +1,162 @@
+"""What a sweep would do, without doing it (`fencesweep grid --dry-run`, fencesweep.estimate).
+
+The spec is planned (its scenes counted, resolved and deduplicated: the same checks as a real
+run, so a bad spec fails here too), one run of each variant warms the engine up and a short
+sample of runs spread over the sweep is timed; the estimate is the runs still to do (chunks
+already saved in the work directory are counted as done) times the seconds per run, divided
+by the local processes a real run would use. A spec too large to plan in this machine's memory
+is counted only. Nothing is written.
+
+`Estimate.lines()` is the text that `--dry-run` prints; `describe_plan` the plan's part of it,
+which a real run also logs (skipped scenes, unused axes).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+from fencesweep.errors import UsageError
+from fencesweep.study import output
+from fencesweep.study import plan as PL
+from fencesweep.study import runs
+from fencesweep.study import spec as S
+
+
+@dataclass
+class Estimate:
+    """A sweep's dry run: its plan, the engine's timing and the estimated time."""
+
+    spec: str  # the spec's file ('spec' when it has none)
+    scene: str
+    out: Path
+    n_scenes: int  # scenes to run (those that invalid: skip drops left out; all of them when not planned)
+    shape: str  # the spec's dimensions, e.g. "2 cases x B2 81 x K2 81"
+    n_models: int | None  # distinct model runs (None: not counted, planning would not fit in memory)
+    skipped: int = 0  # scenes dropped by invalid: skip
+    skipped_example: str | None = None
+    chunk_size: int | None = None  # runs per chunk (None: not known, the engine could not be timed)
+    n_chunks: int | None = None
+    unused_axes: list = field(default_factory=list)  # axes whose values all give the same run
+    chunks_done: int = 0  # chunks an interrupted run already saved in `work`
+    work: Path | None = None  # the work directory
+    runs_left: int | None = None  # model runs still to do
+    warm_up: float | None = None  # seconds the engine's warm-up took (loading the kernels)
+    per_run: float | None = None  # seconds per model run, timed on `timed_runs` runs
+    timed_runs: int = 0
+    jobs: int | None = None  # local processes a real run would use (None: a Dask cluster's workers)
+    seconds: float | None = None  # estimated seconds on `jobs` (on Dask: of work in all)
+    stop: str | None = None  # why a real run would stop before it starts (None: it would start)
+    unavailable: str | None = None  # why the time could not be estimated (the engine failed)
+
+    @property
+    def notes(self) -> list:
+        """What a user should know besides the numbers."""
+        out = [f"{axis} is not used by scene {self.scene}; its values all give the same run" for axis in self.unused_axes]
+        if self.stop:
+            out.append(f"a real run would stop before it starts: {self.stop}")
+        if self.unavailable:
+            out.append(f"estimated time unavailable: {self.unavailable}")
+        return out
+
+    def lines(self) -> list:
+        """The dry run as `fencesweep grid --dry-run` prints it."""
+        if self.n_models is None:
+            return [self.head(), "  distinct model runs: not counted (planning them would not fit in memory)",
+                    f"  a real run would stop before it starts: {self.stop}"]
+        return [self.head()] + self.plan_lines() + self.time_lines()
+
+    def head(self) -> str:
+        """The first line: the spec, its scene, its scenes and the output."""
+        return f"{self.spec}: scene {self.scene}, {self.n_scenes} scenes ({self.shape}) -> {self.out}"
+
+    def plan_lines(self) -> list:
+        """The plan: skipped scenes, distinct runs, chunks, unused axes."""
+        lines = []
+        if self.skipped:
+            lines.append(f"  skipped (invalid: skip): {self.skipped} scenes, e.g. {self.skipped_example}")
+        shared = self.n_scenes - self.n_models
+        lines.append(f"  distinct model runs: {self.n_models}" + (f" ({shared} scenes share a run)" if shared else ""))
+        if self.chunk_size:
+            lines.append(f"  chunks: {self.n_chunks} of up to {self.chunk_size} runs")
+        for axis in self.unused_axes:
+            lines.append(f"  note: {axis} is not used by scene {self.scene}; its values all give the same run")
+        return lines
+
+    def time_lines(self) -> list:
+        """Whether a real run would start, what is done, the engine's timing and the estimate."""
+        if self.unavailable is not None:
+            return [f"  estimated time: unavailable ({self.unavailable})"]
+        lines = [f"  note: a real run would stop before it starts: {self.stop}"] if self.stop else []
+        if self.chunks_done:
+            lines.append(f"  already done: {self.chunks_done} chunks in {self.work}")
+        lines.append(f"  engine: warm-up {self.warm_up:.2f} s; {self.per_run * 1e3:.3g} ms per run "
+                     f"(timed on {self.timed_runs} runs)")
+        if self.jobs:
+            lines.append(f"  estimated time on {self.jobs} job{'s' if self.jobs > 1 else ''}: {human(self.seconds)} "
+                         f"for {self.runs_left} runs")
+        else:
+            lines.append(f"  estimated time: {human(self.seconds)} of work for {self.runs_left} runs, divided by "
+                         f"the cluster's workers")
+        return lines
+
+
+def human(seconds: float) -> str:
+    """A duration as s, min or h."""
+    if seconds < 90:
+        return f"{seconds:.1f} s"
+    if seconds < 5400:
+        return f"{seconds / 60:.1f} min"
+    return f"{seconds / 3600:.1f} h"
+
+
+def of_plan(plan: PL.Plan, out: Path) -> Estimate:
+    """The plan's part of an estimate."""
+    spec = plan.spec
+    return Estimate(spec.path or "spec", spec.scene, out, plan.n_scenes - plan.skipped, spec.shape_text(),
+                    plan.n_models, skipped=plan.skipped,
+                    skipped_example=plan.skipped_examples[0] if plan.skipped else None,
+                    chunk_size=plan.chunk_size, n_chunks=plan.n_chunks if plan.chunk_size else None,
+                    unused_axes=PL.unused_axes(spec))
+
+
+def describe_plan(plan: PL.Plan, out: Path) -> list:
+    """The plan as the dry run shows it: its first line, then skipped scenes, runs, chunks, unused axes."""
+    est = of_plan(plan, out)
+    return [est.head()] + est.plan_lines()
+
+
+def estimate(spec: S.Spec, out: Path, jobs: int, resume: bool = True, backend: str = "loky",
+             overwrite: bool = False, progress: bool = False, simulate: Callable | None = None) -> Estimate:
+    """Plan `spec` into `out`, time the engine on a sample and estimate the run on `jobs` local
+    processes (backend loky) or a Dask cluster; write nothing. A spec too large to plan is
+    counted only (n_models None, `stop` says why). An engine that fails gives `unavailable`."""
+    problem = PL.plan_size_problem(spec)
+    if problem:  # count only: planning would not fit in memory
+        return Estimate(spec.path or "spec", spec.scene, out, spec.n_scenes, spec.shape_text(), None, stop=problem)
+    plan = PL.make_plan(spec, progress=progress)
+    work = output.work_root(out) / plan.salt[:16]
+    if plan.chunk_size is None and resume:
+        plan.chunk_size = output.recorded_chunk_size(work)
+    try:
+        t_warm = runs.warm_up(plan, simulate)
+        per_run, k = runs.time_sample(plan, simulate)
+    except RuntimeError as exc:
+        est = of_plan(plan, out)
+        est.unavailable = str(exc)
+        return est
+    if plan.chunk_size is None:
+        plan.chunk_size = runs.auto_chunk_size(plan.n_models, per_run)
+    est = of_plan(plan, out)
+    est.work, est.warm_up, est.per_run, est.timed_runs = work, t_warm, per_run, k
+    if not overwrite:
+        try:
+            output.check_output(spec, out)
+        except UsageError as exc:
+            est.stop = str(exc)
+    done = output.chunks_done(plan, work) if resume else []
+    est.chunks_done = len(done)
+    est.runs_left = plan.n_models - sum(len(plan.chunk_models(c)) for c in done)
+    est.jobs = runs.local_jobs(jobs, per_run * est.runs_left) if backend == "loky" else None
+    est.seconds = per_run * est.runs_left / (est.jobs or 1)
+    return est

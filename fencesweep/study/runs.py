@@ -1,0 +1,96 @@
+"""Model runs in this process: the engine, a list of runs with their failures recorded, and the
+warm-up and the short timed sample that load the kernels and size a sweep's chunks (step 2 of
+sweep.py).
+
+The engine is fencesweep.model.simulate.simulate_resolved, looked up when it is called (tests
+pass a fake as `simulate`, or replace it there).
+"""
+from __future__ import annotations
+
+import math
+import time
+from typing import Callable, Iterable
+
+import numpy as np
+
+from fencesweep.study import spec as S
+from fencesweep.study.plan import Plan
+from fencesweep.study import store
+
+#: chunk size rule: chunks of about CHUNK_SECONDS of work, at least MIN_CHUNKS of them.
+#: A chunk costs ~0.6-2 ms of dispatch and ~2-15 ms to write (benchmarks/sweep_dispatch.py),
+#: i.e. < 1.5 % of one second; MIN_CHUNKS keeps small sweeps balanced and resumable.
+CHUNK_SECONDS, MIN_CHUNKS, CHUNK_MAX = 1.0, 16, 2_000  # CHUNK_MAX bounds the memory in flight
+SERIAL_BELOW = 3.0  # seconds of estimated work under which a local sweep runs in-process
+
+
+def auto_chunk_size(n_models: int, seconds_per_run: float) -> int:
+    """Model runs per chunk: about CHUNK_SECONDS of work, but at least MIN_CHUNKS chunks."""
+    by_time = math.ceil(CHUNK_SECONDS / max(seconds_per_run, 1e-7))
+    return max(1, min(by_time, math.ceil(n_models / MIN_CHUNKS), CHUNK_MAX))
+
+
+def local_jobs(jobs: int, work_left: float, serial_below: float | None = None) -> int:
+    """Local processes to use: 1 (this process) when the work left is too small to pay for workers."""
+    return 1 if work_left < (SERIAL_BELOW if serial_below is None else serial_below) else jobs
+
+
+def engine() -> Callable:
+    """The engine: simulate_resolved(vals, trajectory=False) -> (results, None)."""
+    from fencesweep.model import simulate as api
+
+    return api.simulate_resolved
+
+
+def run_models(scene: str, vals_list: list, simulate: Callable | None = None) -> list:
+    """Run each parameter set; a run that raises becomes a row with outcome failed and the reason."""
+    fn = simulate or engine()
+    rows = []
+    for vals in vals_list:
+        try:
+            res, _ = fn(vals, trajectory=False)
+            if scene == "stream":
+                res = store.stream_row(res)
+        except Exception as exc:  # recorded, never silent: status names the exception
+            res = store.failed_result(scene, f"failed: exception {type(exc).__name__}: {exc}")
+        rows.append(res)
+    return rows
+
+
+def _warm_rows(spec: S.Spec, rows: Iterable[int], fn: Callable) -> None:
+    for i in rows:
+        vals = spec.resolve(int(i))
+        try:
+            fn(vals, trajectory=False)
+        except Exception as exc:
+            raise RuntimeError(f"the engine failed on {spec.describe(int(i))}: "
+                               f"{type(exc).__name__}: {exc}") from exc
+
+
+def warm_up(plan: Plan, simulate: Callable | None = None) -> float:
+    """Run one model of each variant (scene, drive, law, profile) of a plan in this process.
+
+    This loads (or compiles, once, into Numba's on-disk cache) the kernels here; forked
+    workers inherit them, loky workers load them from the cache. It also stops a sweep
+    whose engine fails at once, before anything is dispatched. Returns the seconds it took.
+    """
+    t0 = time.perf_counter()
+    _warm_rows(plan.spec, (plan.first_row[m] for m in plan.variants.values()), simulate or engine())
+    return time.perf_counter() - t0
+
+
+def time_sample(plan: Plan, simulate: Callable | None = None, budget: float = 2.0, most: int = 64) -> tuple:
+    """(seconds per model run, runs timed), timed on runs spread evenly over the sweep (after warm_up)."""
+    fn = simulate or engine()
+    ids = np.unique(np.linspace(0, plan.n_models - 1, min(most, plan.n_models)).round().astype(int))
+    t0 = time.perf_counter()
+    k = 0
+    for m in ids:
+        try:
+            fn(plan.model_vals(int(m)), trajectory=False)
+        except Exception:  # timed all the same; the sweep records it as a failed row
+            pass
+        k += 1
+        if time.perf_counter() - t0 > budget:
+            break
+    return (time.perf_counter() - t0) / k, k
