@@ -19,7 +19,8 @@ CALIBRATION_TOL = 1e-12
 
 
 def restitution(c: float, law: str) -> float:
-    """e of the dimensionless rigid-wall impact with damping c (module docstring)."""
+    """e of the dimensionless rigid-wall impact with damping c (module docstring; docs/model.md (4.5),
+    (4.6), (4.7))."""
     from fencesweep.model.results import N_IMPACT_RESULTS, RJ_E_EFF
     from fencesweep.model.scenes.impact import impact_kernel
 
@@ -43,7 +44,7 @@ def damping_coefficient(e: float, law: str = "hertz") -> float:
 
 
 def solve_damping_coefficient(e: float, law: str) -> float:
-    """damping_coefficient by Brent's method on e(q) (decreasing)."""
+    """damping_coefficient by Brent's method on e(q) (decreasing; docs/model.md (4.8))."""
     from scipy.optimize import brentq
 
     if e >= 1.0:

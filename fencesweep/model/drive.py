@@ -18,7 +18,8 @@ from fencesweep.kernel.cache import solved
 
 @kernel()
 def rocker_angle(theta, a, b, d):
-    """Rocker angle beta(theta) and d beta/d theta of the open crank-rocker (MODEL.md §2).
+    """Rocker angle beta(theta) and d beta/d theta of the open crank-rocker (docs/model.md (2.2), (2.3),
+    (2.4)).
 
     Crank pivot at the origin, rocker pivot at (d, 0), rocker c = 1. The rocker pin B is
     the intersection of |B - A| = b and |B - (d,0)| = 1 left of the directed line A -> (d,0).
@@ -54,7 +55,8 @@ def hermite_basis(s, h):
 
 @kernel(inline=True)
 def drive_angle(t, p):
-    """alpha_w(t) [rad] and its rate [rad/s] (MODEL.md §2); at rest for t < 0 and t > t_c.
+    """alpha_w(t) [rad] and its rate [rad/s] (docs/model.md (2.6), (2.7)); at rest for t < 0 and t > t_c
+    (2.8).
 
     crank_rocker reads the table of beta(theta) - beta0, beta', beta'' over one crank turn
     that follows the header of p (fill_rocker_table): cubic Hermite interpolation of beta
@@ -131,7 +133,8 @@ def crank_rocker_geometry(swing: float, coupler_ratio: float) -> tuple[float, fl
 
 
 def solve_crank_rocker_geometry(swing: float, coupler_ratio: float) -> tuple[float, float, float, float, float]:
-    """crank_rocker_geometry: the minimum of the rocker angle by Brent's method on its derivative."""
+    """crank_rocker_geometry: the link lengths (docs/model.md (2.1)) and the minimum of the rocker angle
+    (2.5) by Brent's method on its derivative."""
     from scipy.optimize import brentq
 
     angle = python_callable(rocker_angle)

@@ -21,7 +21,7 @@ TIP = 8
 
 @kernel(inline=True)
 def next_code(cur, D, Dd, in_span, kc, cd, law, d_gap, d_force):
-    """The slot's code at penetration D and rate Dd, from its code `cur` (MODEL.md §4: PUSH
+    """The slot's code at penetration D and rate Dd, from its code `cur` (docs/model.md (4.9): PUSH
     while the Kelvin force is > 0, CLIPPED while it is <= 0 with D > 0). An apart slot enters
     at D > 0; a touching one leaves only at D < -d_gap, and switches between PUSH and CLIPPED
     only when the force is beyond +-d_force (numerics.CONTACT_HYSTERESIS): rounding noise
@@ -44,7 +44,8 @@ def next_code(cur, D, Dd, in_span, kc, cd, law, d_gap, d_force):
 
 @kernel(inline=True)
 def corner_fence_geometry(gx, gy, gvx, gvy, ca, sa, dal, sg):
-    """s = G.d along the fence, D = -sigma h (h = G.n), D' = -sigma (v_G.n - alpha' s)."""
+    """s = G.d along the fence, D = -sigma h (h = G.n), D' = -sigma (v_G.n - alpha' s)
+    (docs/model.md (1.1), (5.1), (5.3))."""
     s = gx * ca + gy * sa
     h = -gx * sa + gy * ca
     return s, -sg * h, -sg * ((-gvx * sa + gvy * ca) - dal * s)
@@ -52,7 +53,7 @@ def corner_fence_geometry(gx, gy, gvx, gvy, ca, sa, dal, sg):
 
 @kernel(inline=True)
 def corner_fence_force(rx, ry, gvx, gvy, s, D, Dd, sg, ca, sa, kc, cd, law, mu2, eps, push):
-    """One corner on the fence: force sigma N n + friction along d on the load, its torque
+    """One corner on the fence (docs/model.md (5.4)): force sigma N n + friction along d on the load, its torque
     about the centroid, the moment -sigma N s on the fence, N, (N - N_el) D' and the friction
     power. Not pushing (CLIPPED): N = 0 and only -N_el D' is dissipated (§11)."""
     n, n_el = kelvin_force(max(D, 0.0), Dd, kc, cd, law)
@@ -68,8 +69,8 @@ def corner_fence_force(rx, ry, gvx, gvy, s, D, Dd, sg, ca, sa, kc, cd, law, mu2,
 
 @kernel(inline=True)
 def corner_rail_force(rx, ry, gvx, gvy, gy, kc, cd, law, mu2, eps, push):
-    """One corner on the rail (x_G <= 0, y_G < 0): D = -y_G, D' = -y_G'; force (friction, N)
-    on the load, its torque, N, (N - N_el) D' and the friction power."""
+    """One corner on the rail (x_G <= 0, y_G < 0): D = -y_G, D' = -y_G' (docs/model.md (5.11)); force (friction, N)
+    on the load (5.12), its torque, N, (N - N_el) D' and the friction power."""
     D = max(-gy, 0.0)
     Dd = -gvy
     n, n_el = kelvin_force(D, Dd, kc, cd, law)
@@ -82,7 +83,8 @@ def corner_rail_force(rx, ry, gvx, gvy, gy, kc, cd, law, mu2, eps, push):
 
 @kernel(inline=True)
 def tip_local(tx, ty, x, yy, cphi, sphi):
-    """The fence tip T = (tx, ty) in the load's frame, and T - centroid in the world frame."""
+    """The fence tip T = (tx, ty) in the load's frame (docs/model.md (5.6)), and T - centroid in the world
+    frame."""
     dx = tx - x
     dyy = ty - yy
     return cphi * dx + sphi * dyy, -sphi * dx + cphi * dyy, dx, dyy
@@ -91,7 +93,8 @@ def tip_local(tx, ty, x, yy, cphi, sphi):
 @kernel()
 def tip_edge_choice(x, yy, cphi, sphi, tlx, tly, hl, hw):
     """Edge pushed by the tip, by a separating-axis test of the segment O-T against the load:
-    the axis of smaller overlap, its edge nearest T. 0: x' = +L/2, 1: -L/2, 2: y' = +A/2, 3: -A/2."""
+    the axis of smaller overlap, its edge nearest T (docs/model.md (5.7)). 0: x' = +L/2, 1: -L/2,
+    2: y' = +A/2, 3: -A/2."""
     olx = -(cphi * x + sphi * yy)  # the pivot in the load frame
     oly = sphi * x - cphi * yy
     ovx = min(hl, max(olx, tlx)) - max(-hl, min(olx, tlx))
@@ -103,7 +106,7 @@ def tip_edge_choice(x, yy, cphi, sphi, tlx, tly, hl, hw):
 
 @kernel(inline=True)
 def tip_edge_normal(edge, tlx, tly, hl, hw, cphi, sphi):
-    """Depth D of T below the edge and the edge's outward normal n_e in the world frame."""
+    """Depth D of T below the edge and the edge's outward normal n_e in the world frame (docs/model.md (5.8))."""
     if edge == 0:
         return hl - tlx, cphi, sphi
     if edge == 1:
@@ -117,7 +120,8 @@ def tip_edge_normal(edge, tlx, tly, hl, hw, cphi, sphi):
 def tip_edge_force(D, nex, ney, tx, ty, dx, dyy, vx, vy, om, dal, kc, cd, law, mu2, eps, push):
     """The tip pushing an edge: force -N n_e + friction along the edge on the load, its torque,
     the reaction's moment on the fence at T (friction included), N, (N - N_el) D', friction
-    power. D' from the tip's velocity relative to the load's material point under it."""
+    power. D' from the tip's velocity relative to the load's material point under it (docs/model.md (5.9),
+    (5.10))."""
     rvx = -dal * ty - (vx - om * dyy)
     rvy = dal * tx - (vy + om * dx)
     Dd = -(rvx * nex + rvy * ney)
@@ -134,7 +138,8 @@ def tip_edge_force(D, nex, ney, tx, ty, dx, dyy, vx, vy, om, dal, kc, cd, law, m
 
 @kernel(inline=True)
 def tip_gap(tlx, tly, tlx_d, tly_d, hl, hw):
-    """Signed box distance of T from the load (< 0 inside) and its rate, for the graze check."""
+    """Signed box distance of T from the load (< 0 inside) and its rate, for the graze check
+    (docs/model.md (15.7))."""
     gx = abs(tlx) - hl
     gy = abs(tly) - hw
     if gx >= gy:

@@ -10,7 +10,7 @@ from fencesweep.model import layout as Lp
 
 @kernel(inline=True)
 def corner_offset(j, hl, hw, cphi, sphi):
-    """Offset of corner j from the centroid: local (+-L/2, +-A/2) rotated by phi (MODEL.md §1)."""
+    """Offset of corner j from the centroid: local (+-L/2, +-A/2) rotated by phi (docs/model.md (1.3))."""
     lx = hl if (j == 0 or j == 3) else -hl
     ly = hw if j < 2 else -hw
     return cphi * lx - sphi * ly, sphi * lx + cphi * ly
@@ -18,14 +18,14 @@ def corner_offset(j, hl, hw, cphi, sphi):
 
 @kernel(inline=True)
 def corner_motion(j, y, hl, hw, cphi, sphi):
-    """Corner j: offset (rx, ry), position (gx, gy) and velocity (gvx, gvy) (MODEL.md §1)."""
+    """Corner j: offset (rx, ry), position (gx, gy) and velocity (gvx, gvy) (docs/model.md (1.4))."""
     rx, ry = corner_offset(j, hl, hw, cphi, sphi)
     return rx, ry, y[0] + rx, y[1] + ry, y[3] - y[5] * ry, y[4] + y[5] * rx
 
 
 @kernel()
 def initial_state(p, y):
-    """MODEL.md §1: phi0; foremost corner at x = R_s, lowest at y = dP; belt velocity."""
+    """docs/model.md (1.5): phi0; foremost corner at x = R_s, lowest at y = dP; belt velocity."""
     cphi = math.cos(p[Lp.PHI0])
     sphi = math.sin(p[Lp.PHI0])
     hl = 0.5 * p[Lp.LL]
@@ -60,7 +60,7 @@ def min_corner_x(y, p):
 
 @kernel()
 def outcome_margin(kind, y, p):
-    """Outcome event functions (MODEL.md §9), >= 0 once the event has happened:
+    """Outcome event functions (docs/model.md (9.1), (9.2)), >= 0 once the event has happened:
     0 scraped: y - P_max; 1 escaped: min_j x_Gj - l (> 0)."""
     if kind == 0:
         return y[1] - p[Lp.PMAX]
