@@ -5,22 +5,30 @@ import pytest
 
 from fencesweep.model import simulate as api
 from fencesweep import resolve
-from fencesweep.model.scenes import cycle, stream
+from fencesweep.model.scenes import stream
+from fencesweep.model.scenes.cycle import layout
 
 pytestmark = pytest.mark.plain_python  # also run without Numba's JIT: tests/test_plain_python.py
 
 
-def test_kernel_reports_the_rows_a_short_buffer_could_not_hold():
-    from fencesweep.model.results import N_CYCLE_RESULTS
+def _cycle_args(case):
+    """run_cycles' arguments for one cycle of a named case (as model/simulate.py passes them)."""
+    from fencesweep.model import layout as Lp
     from fencesweep.model.prepare import prepare
+    from fencesweep.model.results import N_STREAM_CYCLE_RESULTS
 
-    p = prepare(resolve("cycle", "small_far"))
-    out = np.empty(N_CYCLE_RESULTS)
-    full = np.empty((100_000, len(cycle.TRAJ_COLUMNS)))
-    needed = stream.cycle_kernel(p, out, full)
-    short = np.full((8, len(cycle.TRAJ_COLUMNS)), -7.0)
+    p = prepare(resolve("cycle", case))
+    loads = np.ascontiguousarray(p[list(Lp.LOAD_SLOTS)][None, :])
+    return p, loads, float(p[Lp.TC]), np.empty((1, N_STREAM_CYCLE_RESULTS)), np.empty(2, np.int64)
+
+
+def test_kernel_reports_the_rows_a_short_buffer_could_not_hold():
+    p, loads, period, out, starts = _cycle_args("small_far")
+    full = np.empty((100_000, len(layout.TRAJ_COLUMNS)))
+    needed = stream.run_cycles(p, loads, period, out, full, starts)
+    short = np.full((8, len(layout.TRAJ_COLUMNS)), -7.0)
     assert needed > 8
-    assert stream.cycle_kernel(p, out, short) == needed  # counts past the capacity ...
+    assert stream.run_cycles(p, loads, period, out, short, starts) == needed  # counts past the capacity ...
     np.testing.assert_array_equal(short, full[:8])  # ... and fills what fits
 
 
@@ -37,14 +45,14 @@ def test_short_trajectory_buffer_is_grown_not_cut(monkeypatch):
 
 
 def test_a_kernel_that_needs_more_rows_on_its_rerun_is_an_error(monkeypatch):
-    real = stream.cycle_kernel
+    real = stream.run_cycles
     calls = []
 
-    def growing(p, out, traj):  # a kernel whose second run needs more rows than its first
+    def growing(p, loads, period, out, traj, starts):  # a kernel whose second run needs more rows than its first
         calls.append(traj.shape[0])
-        return real(p, out, traj) + len(calls)
+        return real(p, loads, period, out, traj, starts) + len(calls)
 
-    monkeypatch.setattr(stream, "cycle_kernel", growing)
+    monkeypatch.setattr(stream, "run_cycles", growing)
     monkeypatch.setattr(api, "TRAJECTORY_ROWS", 8)
     with pytest.raises(RuntimeError, match="not deterministic"):
         api.simulate_resolved(resolve("cycle", "small_far"), trajectory=True)

@@ -7,7 +7,12 @@ from scipy.integrate import dblquad
 
 from fencesweep import simulate
 from fencesweep.model.calibrate import damping_coefficient
-from fencesweep.model.contact import belt_friction, coulomb, drop_speed, hertz_contact_time, hertz_peak, mean_footprint_radius, normal_force
+from fencesweep.kernel.jit import python_callable
+from fencesweep.model import contact as C
+from fencesweep.model.contact import drop_speed, hertz_contact_time, hertz_peak, mean_footprint_radius
+
+# the compiled formulas, called from Python through a callable copy (kernel/jit.py)
+belt_friction, coulomb, normal_force = (python_callable(f) for f in (C.belt_friction, C.coulomb, C.normal_force))
 
 pytestmark = pytest.mark.plain_python  # also run without Numba's JIT: tests/test_plain_python.py
 

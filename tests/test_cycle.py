@@ -8,10 +8,14 @@ from scipy.optimize import brentq
 
 from fencesweep import resolve, simulate, simulate_resolved
 from fencesweep.model import layout as Lp
-from fencesweep.model.drive import drive_angle
+from fencesweep.kernel.jit import python_callable
+from fencesweep.model import drive as D
 from fencesweep.model.params import relative_damping
-from fencesweep.model.scenes.cycle import IW_LOAD, IW_MODE, FM_KELVIN, N_AUX, N_IW, N_STATE, rhs
+from fencesweep.model.scenes.cycle import rhs as R
+from fencesweep.model.scenes.cycle.layout import FM_KELVIN, IW_LOAD, IW_MODE, N_AUX, N_IW, N_STATE
 from fencesweep.model.prepare import prepare
+
+drive_angle, rhs = python_callable(D.drive_angle), python_callable(R.rhs)
 
 pytestmark = pytest.mark.plain_python  # also run without Numba's JIT: tests/test_plain_python.py
 

@@ -5,7 +5,11 @@ import numpy as np
 import pytest
 
 from fencesweep import resolve
-from fencesweep.model.drive import crank_rocker_geometry, drive_angle, rocker_angle
+from fencesweep.kernel.jit import python_callable
+from fencesweep.model import drive as D
+from fencesweep.model.drive import crank_rocker_geometry
+
+drive_angle, rocker_angle = python_callable(D.drive_angle), python_callable(D.rocker_angle)
 from fencesweep.model.prepare import prepare
 
 pytestmark = pytest.mark.plain_python  # also run without Numba's JIT: tests/test_plain_python.py

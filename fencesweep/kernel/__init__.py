@@ -1,1 +1,15 @@
-"""The integrator contract and Numba's set-up: no physics here."""
+"""The integrator contract and Numba's set-up: no physics here.
+
+  jit.py       how kernel functions are compiled (one signature, IR for callers, templates)
+  cache.py     where compiled entry points are cached; first-run notice and compile lock
+  numerics.py  every tolerance and step bound of the engine, each with its reason
+  rk.py        Runge-Kutta steps (DOPRI5, RK4), error norm, dense output, step controller
+  search.py    event location (bisection) and peak finding (Brent) on a step's dense output
+  driver.py    the one accept/reject step loop every scene integrates with
+"""
+import os
+
+# Numba formats a message for every overload candidate it rejects while typing; with colorama
+# installed each one set up and tore down colorama's terminal wrappers (5% of a cold compile).
+# Read once, when Numba is first imported: set before any kernel module imports it.
+os.environ.setdefault("NUMBA_DISABLE_ERROR_MESSAGE_HIGHLIGHTING", "1")

@@ -32,6 +32,7 @@ import sys
 import tempfile
 from pathlib import Path
 
+from fencesweep.kernel.numba_setup import numba  # noqa: F401  (first: Numba loaded as the kernels need it)
 from numba.core import caching, config
 
 PKG = Path(__file__).resolve().parents[1]  # the package
@@ -153,7 +154,9 @@ def solved(name: str, key: tuple, solve):
 _warm: set = set()
 #: seconds a cold compile of each group of entry points took on a 2-core machine
 #: (benchmarks/startup.py, results/startup.md): what the first run announces
-COMPILE_SECONDS = {"cycle": 15, "impact": 3}
+COMPILE_SECONDS = {"cycle": 30, "impact": 5}
+#: the groups a group's compile makes warm too (a cycle's parameters need the impact scene)
+IMPLIES = {"cycle": ("cycle", "impact"), "impact": ("impact",)}
 
 
 def _marker(name: str) -> Path:
@@ -168,9 +171,10 @@ def is_warm(name: str) -> bool:
 
 
 def mark_warm(name: str) -> None:
-    _warm.add(name)
-    with contextlib.suppress(OSError):
-        _marker(name).touch()
+    for group in IMPLIES.get(name, (name,)):
+        _warm.add(group)
+        with contextlib.suppress(OSError):
+            _marker(group).touch()
 
 
 @contextlib.contextmanager

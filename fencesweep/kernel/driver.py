@@ -2,9 +2,10 @@
 of scipy.integrate._ivp's ivp.py: the method steps, the driver owns the loop and its stops, the
 scene handles what happens at each accepted step).
 
-    t, h, why = integrate(rhs, accept, ctl, p, w, t, t_end, t_land, h)
+    loop = integrator(step, accept, name)       # once per scene (kernel/jit.py specialise)
+    t, h, why = loop(ctl, p, w, t, t_end, t_land, h)
 
-steps (t, w.y) towards t_end with kernel/rk.py's `step` under error control. A step that would
+steps (t, w.y) towards t_end with the scene's step (kernel/rk.py stepper) under error control. A step that would
 pass t_land (a time a result is read at, e.g. t_c) is shortened to end on it exactly (t1 =
 t_land, not the rounded t + h). A rejected step is retried shorter (kernel/numerics.py: SAFETY,
 FAC_MIN); an accepted one goes to the scene's `accept(p, w, t, h, t1, err, h_next) -> (t,
@@ -20,14 +21,13 @@ loop. The stops, in one place:
 `ctl` = (method, tol, h_max, dt, h_floor): the method code, its tolerance, the largest step, the
 fixed step of RK4, the step floor. The work tuple `w` has at least y, y1, tmp, K, aux, atol,
 iw (the scene's integer state) and count (C_STEPS, C_REJECTS, C_ERR2: accepted and rejected
-steps and the sum of the accepted steps' squared error norms). `rhs` and `accept` are passed as
-arguments: the driver is inlined into the scene that calls it (kernel/jit.py).
+steps and the sum of the accepted steps' squared error norms).
 """
 from __future__ import annotations
 
 from fencesweep.kernel import numerics as NU
 from fencesweep.kernel import rk
-from fencesweep.kernel.jit import kernel
+from fencesweep.kernel.jit import kernel, specialise
 
 STOP_END, STOP_SCENE, STOP_MAX_STEPS, STOP_UNDERFLOW = 0, 1, 2, 3
 C_STEPS, C_REJECTS, C_ERR2, N_COUNT = 0, 1, 2, 3
@@ -49,10 +49,18 @@ def rejected_step(h, err):
     return NU.FAC_MIN * h
 
 
-@kernel(inline="always")
-def integrate(rhs, accept, ctl, p, w, t, t_end, t_land, h):
+#: the scene's step and accept in the template `integrate`, bound by `integrator`
+STEP = ACCEPT = None
+
+
+def integrator(step, accept, name: str):
+    """`integrate` with the scene's step and accept, compiled as the kernel function `name`."""
+    return specialise(integrate, name, STEP=step, ACCEPT=accept)
+
+
+def integrate(ctl, p, w, t, t_end, t_land, h):
     """Step towards t_end, landing on t_land (module docstring); returns (t, the next step, why
-    it stopped)."""
+    it stopped). A template: STEP and ACCEPT are the scene's (`integrator`)."""
     method, tol, h_max, dt, h_floor = ctl
     n = w.y.shape[0]
     while not reached(t, t_end):
@@ -64,7 +72,7 @@ def integrate(rhs, accept, ctl, p, w, t, t_end, t_land, h):
         lands = t < t_land and t + h >= t_land
         if lands:
             h = t_land - t
-        err = rk.step(method, rhs, t, w.y, h, p, w.iw, w.K, w.tmp, w.y1, w.aux, w.atol, tol, n)
+        err = STEP(method, t, w.y, h, p, w.iw, w.K, w.tmp, w.y1, w.aux, w.atol, tol, n)
         if not (err <= 1.0):  # rejected (a NaN error too)
             h = rejected_step(h, err)
             w.count[C_REJECTS] += 1.0
@@ -74,7 +82,7 @@ def integrate(rhs, accept, ctl, p, w, t, t_end, t_land, h):
         w.count[C_STEPS] += 1.0
         w.count[C_ERR2] += err * err
         h_next = rk.next_step(h, err, NU.SAFETY, NU.FAC_MIN, NU.FAC_MAX)
-        t, h, stop = accept(p, w, t, h, t_land if lands else t + h, err, h_next)
+        t, h, stop = ACCEPT(p, w, t, h, t_land if lands else t + h, err, h_next)
         if stop:
             return t, h, STOP_SCENE
     return t, h, STOP_END

@@ -20,76 +20,30 @@ with one of:
               compile than a small function itself (measured on this machine: 0.125 s against
               0.039 s for a one-line function, of the ~60 kernel functions' cold compile).
               `python_callable` gives a test or a Python caller its own callable copy.
-  kernel(inline="always") only for the few generic functions that take other compiled
-            functions as arguments (kernel/rk.py `step`, kernel/search.py, kernel/driver.py):
-            Numba can cache a function that receives a function only when it is inlined,
-            which makes the function argument a constant of the caller.
+  specialise(template, name, **bindings)  for the few generic functions that call a scene's
+            compiled function (kernel/rk.py's step calls the right-hand side, kernel/driver.py's
+            loop calls the step and the scene's accept, kernel/search.py calls a predicate or a
+            quantity): the template is a plain function that calls the scene's function by a
+            global name (RHS, STEP, ...); specialise compiles a copy of it with that name bound,
+            once per scene, like a C++ template instance. Passing the function as an argument
+            instead would make Numba inline the generic function at every call site to be able
+            to cache it (measured: 0.5-2.4 s of a cold compile per call site).
   entry()   an entry point, called from Python with one type signature (its caller passes
             float64 scalars and C-contiguous float64 / int64 arrays, so one compilation
             serves every call; tests/test_jit.py checks that every function has exactly one):
             with reference counting, as entry points allocate a run's work arrays once.
-
-Loading the kernels without the imports they do not use (each measured in a fresh process
-with a warm cache):
-  * Numba's BLAS probe. The first compiled function a process loads makes Numba import its
-    NumPy implementations (numba.np.arraymath), and that module asks at import whether a
-    BLAS is there by importing scipy.linalg.cython_blas, which imports all of scipy.linalg
-    (and numpy.f2py): 0.27 s of a process's 0.6 s kernel load. No kernel uses BLAS (no
-    np.dot, no linalg), so the probe is answered "no". The one effect: in this process
-    Numba's np.convolve and np.correlate use Numba's own loop instead of BLAS; np.dot and
-    np.linalg import scipy when they are compiled.
-  * cffi (with pycparser), which Numba imports to type cffi functions, and coverage, which it
-    imports to report compiled lines to a coverage run. No kernel calls a cffi function; a
-    coverage run imports coverage before Numba, and then nothing is hidden. Together 0.04 s
-    of the load.
-Each is hidden only for the length of that import (_hidden), and only when the process has
-not imported it already. And Numba's error-message highlighting is switched off before Numba is
-imported: every failed overload candidate that Numba tries while typing formats a message, and
-with colorama installed each one set up and tore down colorama's terminal wrappers (5% of a
-cold compile).
 """
 from __future__ import annotations
 
-import contextlib
 import functools
-import os
-import sys
+import types as pytypes
 
-os.environ.setdefault("NUMBA_DISABLE_ERROR_MESSAGE_HIGHLIGHTING", "1")
+from fencesweep.kernel.numba_setup import numba  # first: Numba loaded without what it does not need
+from numba import njit, types
+from numba.core.codegen import CPUCodeLibrary, JITCPUCodegen
+from numba.core.registry import CPUDispatcher
 
-
-@contextlib.contextmanager
-def _hidden(*modules: str):
-    """Within the block, importing one of `modules` (not imported yet) raises ImportError at once."""
-    hide = [m for m in modules if m not in sys.modules]
-    for m in hide:
-        sys.modules[m] = None
-    try:
-        yield
-    finally:
-        for m in hide:
-            del sys.modules[m]
-
-
-with _hidden("coverage"):
-    import numba
-    from numba import njit, types
-    from numba.core.registry import CPUDispatcher
-
-
-def _import_numba_support_without_probes() -> None:
-    """Import Numba's NumPy and cffi support with the BLAS probe answered "no" and cffi hidden
-    (module docstring)."""
-    if "numba.np.arraymath" in sys.modules:
-        return  # already imported: nothing to save
-    with _hidden("scipy.linalg.cython_blas", "cffi"):
-        import numba.core.typing.cffi_utils  # noqa: F401
-        import numba.np.arraymath  # noqa: F401
-
-
-_import_numba_support_without_probes()
-
-from fencesweep.kernel import cache  # noqa: E402  (after Numba's set-up above; it registers the cache locator)
+from fencesweep.kernel import cache  # registers the cache locator before any kernel compiles
 
 #: True when NUMBA_DISABLE_JIT=1: the decorators return the plain Python functions
 JIT_DISABLED = bool(numba.config.DISABLE_JIT)
@@ -98,29 +52,90 @@ JIT_DISABLED = bool(numba.config.DISABLE_JIT)
 _KERNEL = dict(nopython=True, _nrt=False, no_cpython_wrapper=True, no_cfunc_wrapper=True)
 
 
+#: kernel functions being compiled, innermost last (KernelDispatcher.compile)
+_COMPILING: list = []
+
+
 class KernelDispatcher(CPUDispatcher):
-    """Numba's dispatcher for a kernel function: a call from compiled code is typed with the
-    arguments' plain types (types.unliteral), so a constant argument does not make a new
-    compilation (module docstring)."""
+    """Numba's dispatcher for a kernel function (module docstring): a call from compiled code is
+    typed with the arguments' plain types (types.unliteral), so a constant argument does not make
+    a new compilation; what it compiles is LLVM IR for its callers to link (IR_ONLY)."""
 
     def get_call_template(self, args, kws):
         return super().get_call_template(tuple(types.unliteral(a) for a in args),
                                          {k: types.unliteral(v) for k, v in kws.items()})
+
+    def compile(self, sig):
+        _COMPILING.append(self)
+        try:
+            return super().compile(sig)
+        finally:
+            _COMPILING.pop()
+
+    def __call__(self, *args, **kwargs):
+        raise TypeError(f"{self.py_func.__qualname__} is a kernel function, called from compiled code only; "
+                        f"fencesweep.kernel.jit.python_callable gives Python a callable copy")
+
+
+def _ir_only(method):
+    """A CPUCodeLibrary method that does nothing for a kernel function's own library (IR_ONLY)."""
+
+    def wrapped(library):
+        if not _COMPILING:
+            method(library)
+
+    wrapped.__wrapped__ = method
+    return wrapped
+
+
+def _ir_only_finalize(method):
+    """CPUCodeLibrary._finalize_final_module that, for a kernel function's own library, only
+    checks its IR and marks it final: no machine code (IR_ONLY)."""
+
+    def wrapped(library):
+        if not _COMPILING:
+            return method(library)
+        library._finalize_dynamic_globals()
+        library._verify_declare_only_symbols()
+        library._finalized = True
+
+    wrapped.__wrapped__ = method
+    return wrapped
+
+
+#: IR_ONLY: a kernel function's own library is LLVM IR that its callers link and optimize with
+#: their own code (Numba links every callee's IR into its caller's module); the library is not
+#: optimized as a module nor turned into machine code, which only an entry point's is (measured:
+#: its module passes and its machine code were ~2/3 of a cold compile's LLVM time, all of it
+#: redone in every caller). Nothing runs a kernel function's own machine code: only entry points
+#: are called from Python, and only they are cached.
+IR_ONLY = not hasattr(CPUCodeLibrary._finalize_final_module, "__wrapped__")
+def _ir_only_env(method):
+    """JITCPUCodegen.set_env that leaves alone the environment of a kernel function's own library,
+    which has no machine code to hold it (IR_ONLY)."""
+
+    def wrapped(codegen, env_name, env):
+        if not _COMPILING:
+            method(codegen, env_name, env)
+
+    wrapped.__wrapped__ = method
+    return wrapped
+
+
+if IR_ONLY:
+    CPUCodeLibrary._optimize_final_module = _ir_only(CPUCodeLibrary._optimize_final_module)
+    CPUCodeLibrary._finalize_final_module = _ir_only_finalize(CPUCodeLibrary._finalize_final_module)
+    JITCPUCodegen.set_env = _ir_only_env(JITCPUCodegen.set_env)
 
 
 def kernel(inline=False):
     """The decorator of a kernel function (module docstring)."""
     if JIT_DISABLED:
         return lambda fn: fn
-    if inline == "always":  # a generic function that takes compiled functions: inlined by Numba
-        targetoptions = dict(_KERNEL, inline="always", forceinline=False)
-    else:
-        targetoptions = dict(_KERNEL, forceinline=bool(inline))
+    targetoptions = dict(_KERNEL, forceinline=bool(inline))
 
     def compiled(fn):
-        disp = KernelDispatcher(py_func=fn, locals={}, targetoptions=targetoptions)
-        disp.enable_caching()
-        return disp
+        return KernelDispatcher(py_func=fn, locals={}, targetoptions=targetoptions)
 
     return compiled
 
@@ -128,6 +143,17 @@ def kernel(inline=False):
 def entry(**options):
     """numba.njit for an entry point called from Python (module docstring)."""
     return njit(cache=True, _nrt=True, no_cfunc_wrapper=True, forceinline=False, **options)
+
+
+def specialise(template, name: str, **bindings):
+    """A kernel function compiled from the plain function `template` with the global names in
+    `bindings` bound to other kernel functions (module docstring). `name` names it in the cache
+    and in profiles (it must be unique in the package)."""
+    fn = pytypes.FunctionType(template.__code__, {**template.__globals__, **bindings}, name,
+                              template.__defaults__, template.__closure__)
+    fn.__qualname__ = name
+    fn.__doc__ = template.__doc__
+    return kernel()(fn)
 
 
 @functools.lru_cache(maxsize=None)
@@ -139,4 +165,4 @@ def python_callable(fn):
     return njit(_nrt=False)(fn.py_func)
 
 
-__all__ = ["kernel", "entry", "python_callable", "cache", "JIT_DISABLED"]
+__all__ = ["kernel", "entry", "specialise", "python_callable", "cache", "JIT_DISABLED"]

@@ -1,9 +1,9 @@
 """Explicit Runge-Kutta steps: the method, its error estimate, its dense output and the step
 controller (in the spirit of scipy.integrate._ivp's rk.py).
 
-A scene supplies a right-hand side `fun(t, y, p, iw, dy, aux)` (compiled; passed to `step` as an
-argument, which is why `step` is inlined into its callers: kernel/jit.py); this module supplies
-  * `step`: one step of a method chosen by code, returning the weighted error estimate (0 for
+A scene supplies a right-hand side `rhs(t, y, p, iw, dy, aux)` (compiled); this module supplies
+  * `stepper(rhs, name)`: one step of a method chosen by code with that right-hand side (the
+    template `step` specialised, kernel/jit.py), returning the weighted error estimate (0 for
     the fixed-step RK4 baseline), the right-hand side called from one place (a stage loop);
   * `dense_coeffs` / `dense_eval`: the step's continuous extension
     y(t0 + theta h) = y0 + Q0 theta + Q1 theta^2 + Q2 theta^3 + Q3 theta^4;
@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import math
 
-from fencesweep.kernel.jit import kernel
+from fencesweep.kernel.jit import kernel, specialise
 
 METHOD_DOPRI5, METHOD_RK4 = 0, 1
 N_STAGES = 7  # stage vectors kept per step (DOPRI5: 6 + the FSAL stage f(t + h, y1))
@@ -59,7 +59,7 @@ def last_stage(method):
 
 
 @kernel(inline=True)
-def dopri5_stage(s, t, y, h, K, out):
+def dopri5_stage(s, t, y, h, K, out):  # noqa: C901 (12: the tableau's six rows, each written out)
     """The state y + h sum_j a_sj K_j at which DOPRI5's stage s (1..6; 6: the solution y1) is
     evaluated, into out; returns the stage's time t + c_s h. The sums are written out in the
     order of the tableau's rows."""
@@ -104,11 +104,19 @@ def rk4_stage(s, t, y, h, K, out):
     return t + h
 
 
-@kernel(inline="always")
-def step(method, fun, t, y, h, p, iw, K, tmp, y1, aux, atol, rtol, n_ctrl):
+#: the scene's right-hand side in the template `step`, bound by `stepper`
+RHS = None
+
+
+def stepper(rhs, name: str):
+    """`step` with the right-hand side `rhs`, compiled as the kernel function `name`."""
+    return specialise(step, name, RHS=rhs)
+
+
+def step(method, t, y, h, p, iw, K, tmp, y1, aux, atol, rtol, n_ctrl):
     """One step of `method` from (t, y) with K[0] = f(t, y) given: fills K[1..] (K[6] = f(t + h,
     y1), the FSAL stage) and y1; returns the error norm of the step (acceptable when <= 1; 0 for
-    the fixed-step RK4, which has no estimate)."""
+    the fixed-step RK4, which has no estimate). A template: RHS is the scene's (`stepper`)."""
     last = last_stage(method)
     for s in range(1, last + 1):
         out = y1 if s == last else tmp
@@ -116,7 +124,7 @@ def step(method, fun, t, y, h, p, iw, K, tmp, y1, aux, atol, rtol, n_ctrl):
             ts = rk4_stage(s, t, y, h, K, out)
         else:
             ts = dopri5_stage(s, t, y, h, K, out)
-        fun(ts, out, p, iw, K[s if s < last else 6], aux)
+        RHS(ts, out, p, iw, K[s if s < last else 6], aux)
     if method == METHOD_RK4:
         return 0.0
     return error_norm(K, h, y, y1, atol, rtol, n_ctrl)

@@ -2,21 +2,35 @@
 finder (Brent's search of a quantity's maximum). The predicate or quantity is a compiled
 function `f(ctx, theta)` of the fraction theta of the step and a tuple `ctx` the caller packs
 (the step's start, its dense output, the scene's parameters and work arrays): events and peaks
-are passed in as data, as scipy.integrate._ivp passes its event functions. Both searches take
-the function as an argument, so they are inlined into their callers (kernel/jit.py).
+are passed in as data, as scipy.integrate._ivp passes its event functions. `bisector(pred,
+name)` and `peak_finder(q, name)` compile the two templates with the scene's function bound
+(kernel/jit.py specialise).
 """
 from __future__ import annotations
 
-from fencesweep.kernel.jit import kernel
+from fencesweep.kernel.jit import kernel, specialise
+
+#: the scene's predicate in `bisect` and quantity in `peak_max`, bound by bisector / peak_finder
+PRED = QUANTITY = None
 
 
-@kernel(inline="always")
-def bisect(pred, ctx, lo, hi, tol):
-    """Event location: pred(ctx, lo) is False and pred(ctx, hi) is True; returns the final
-    bracket (lo, hi), hi - lo <= tol, with the event in it (hi is just past the event)."""
+def bisector(pred, name: str):
+    """`bisect` with the predicate `pred`, compiled as the kernel function `name`."""
+    return specialise(bisect, name, PRED=pred)
+
+
+def peak_finder(q, name: str):
+    """`peak_max` with the quantity `q`, compiled as the kernel function `name`."""
+    return specialise(peak_max, name, QUANTITY=q)
+
+
+def bisect(ctx, lo, hi, tol):
+    """Event location: PRED(ctx, lo) is False and PRED(ctx, hi) is True; returns the final
+    bracket (lo, hi), hi - lo <= tol, with the event in it (hi is just past the event). A
+    template: PRED is the scene's (`bisector`)."""
     while hi - lo > tol:
         mid = 0.5 * (lo + hi)
-        if pred(ctx, mid):
+        if PRED(ctx, mid):
             hi = mid
         else:
             lo = mid
@@ -27,21 +41,21 @@ def bisect(pred, ctx, lo, hi, tol):
 CGOLD = 0.3819660112501051
 
 
-@kernel(inline="always")
-def peak_max(q, ctx, lo, hi, tol):
-    """Maximum of a unimodal q(ctx, theta) on [lo, hi] to within tol in theta, by Brent's
+def peak_max(ctx, lo, hi, tol):
+    """Maximum of a unimodal QUANTITY(ctx, theta) on [lo, hi] to within tol in theta, by Brent's
     search (Brent 1973, "Algorithms for Minimization without Derivatives", ch. 5, procedure
     localmin, applied to -q): successive parabolic interpolation through the three best
     points, falling back to a golden-section step whenever the parabola's step is not
     acceptable, so it never takes many more evaluations than golden-section search and, on
     a smooth peak, converges superlinearly (~10 evaluations to 1e-6 of the step against
-    ~30). Returns (theta, q) of the best point seen."""
+    ~30). Returns (theta, q) of the best point seen. A template: QUANTITY is the scene's
+    (`peak_finder`)."""
     a = lo
     b = hi
     x = a + CGOLD * (b - a)  # the best point; w the second best, v the previous w
     w = x
     v = x
-    fx = -q(ctx, x)
+    fx = -QUANTITY(ctx, x)
     fw = fx
     fv = fx
     d = 0.0  # the last step, and e the one before it
@@ -53,7 +67,7 @@ def peak_max(q, ctx, lo, hi, tol):
             u = x + d
         else:
             u = x + tol1 if d > 0.0 else x - tol1
-        fu = -q(ctx, u)
+        fu = -QUANTITY(ctx, u)
         a, b, x, w, v, fx, fw, fv = _brent_keep(a, b, x, w, v, fx, fw, fv, u, fu)
     return x, -fx
 

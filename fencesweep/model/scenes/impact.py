@@ -21,7 +21,7 @@ from fencesweep.kernel import driver
 from fencesweep.kernel import numerics as NU
 from fencesweep.kernel import rk
 from fencesweep.kernel.jit import entry, kernel
-from fencesweep.kernel.search import bisect, peak_max
+from fencesweep.kernel.search import bisector, peak_finder
 from fencesweep.model import layout as Lp
 from fencesweep.model import results as Rs
 from fencesweep.model.contact import kelvin_force, pulse_time
@@ -85,13 +85,19 @@ def released(ctx, theta):
     return force_at(ctx, theta) <= 0.0
 
 
+#: the searches on the dense output (kernel/search.py) and the step (kernel/rk.py) of this scene
+find_release = bisector(released, "impact_find_release")
+peak_force = peak_finder(force_at, "impact_peak_force")
+step = rk.stepper(impact_rhs, "impact_step")
+
+
 @kernel()
 def step_peak(ctx, theta, peak):
     """The largest force over [0, theta] of the step: an interior maximum (rising just after the
     start, falling just before theta) by Brent's search, and the value at theta."""
     d = 1e-3 * theta
     if force_at(ctx, d) > force_at(ctx, 0.0) and force_at(ctx, theta - d) > force_at(ctx, theta):
-        peak = max(peak, peak_max(force_at, ctx, 0.0, theta, NU.PEAK_TOL)[1])
+        peak = max(peak, peak_force(ctx, 0.0, theta, NU.PEAK_TOL)[1])
     return max(peak, force_at(ctx, theta))
 
 
@@ -104,7 +110,7 @@ def accept(p, w, t, h, t1, err, h_next):
     ctx = (w.y, w.Q, p, w.iw, w.tmp, w.dy, w.aux)
     theta = 1.0
     if released(ctx, 1.0):
-        theta = bisect(released, ctx, 0.0, 1.0, NU.EVENT_TOL * w.acc[R_TP] / h)[1]
+        theta = find_release(ctx, 0.0, 1.0, NU.EVENT_TOL * w.acc[R_TP] / h)[1]
     w.acc[R_PEAK] = step_peak(ctx, theta, w.acc[R_PEAK])
     rk.dense_eval(w.y, w.Q, theta, w.y1, N_STATE)
     D1, Dd1 = penetration(w.y1, p, w.iw[IW_RIGID] != 0)
@@ -123,6 +129,10 @@ def accept(p, w, t, h, t1, err, h_next):
         w.y[i] = w.y1[i]
         w.K[0, i] = w.K[6, i]
     return t1, h_next, False
+
+
+#: the driver's loop with this scene's step and accept (kernel/driver.py)
+loop = driver.integrator(step, accept, "impact_loop")
 
 
 @kernel()
@@ -167,7 +177,7 @@ def impact_kernel(p, rigid, free, speed, out):
     impact_rhs(0.0, w.y, p, w.iw, w.K[0], w.aux)
     w.acc[R_PEAK] = w.aux[0]  # the linear law jumps to b w at contact
     ctl = (rk.METHOD_DOPRI5, p[Lp.TOL], math.inf, 0.0, NU.H_MIN * tp)
-    t, h, why = driver.integrate(impact_rhs, accept, ctl, p, w, 0.0, math.inf, math.inf, 1e-3 * tp)
+    t, h, why = loop(ctl, p, w, 0.0, math.inf, math.inf, 1e-3 * tp)
     if why == driver.STOP_UNDERFLOW:
         w.acc[R_STATUS] = Rs.ST_UNDERFLOW
     write_results(w, t, speed, out)

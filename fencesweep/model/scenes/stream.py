@@ -34,7 +34,7 @@ from fencesweep.model.scenes.cycle.books import apply_contact_change, drop_load,
 from fencesweep.model.scenes.cycle.layout import (A_EXITED, A_QMAX, A_STATUS, A_T_EXIT, IW_EDGE, IW_MODE, IW_RIDE,
                                                   N_ACC, N_AUX, N_IW, N_Q, N_QV, N_STATE, QV_0, Work)
 from fencesweep.model.scenes.cycle.peaks import quantities_from_aux
-from fencesweep.model.scenes.cycle.rhs import fence_state, rhs
+from fencesweep.model.scenes.cycle.rhs import fence_state, rhs, step
 from fencesweep.model.scenes.cycle.run import run
 from fencesweep.model.scenes.cycle.slots import classify, in_contact
 
@@ -48,7 +48,7 @@ def cycle_params(p, load, period, last, pk):
     pk[Lp.TMAX] = p[Lp.TMAX] if last else min(p[Lp.TMAX], period)
 
 
-@kernel(inline="always")
+@kernel()
 def begin_cycle(p, w):
     """A new load at tau = 0 (MODEL.md §1) with the fence's (alpha, alpha') that w.y holds
     (0, 0 for the first cycle): the contacts it starts in, f(0, y), the tracked quantities'
@@ -66,7 +66,7 @@ def begin_cycle(p, w):
     w.row[0] = record(w.traj, w.row[0], 0.0, w.y, p, w.iw, w.aux)
 
 
-@kernel(inline="always")
+@kernel()
 def start_results(p, w, o):
     """MODEL.md §14: start_deflection dalpha(t_k), start_rate dalpha'(t_k), start_amplitude."""
     al, dal, aw, daw = fence_state(0.0, w.y, p, w.iw[IW_MODE])
@@ -75,7 +75,7 @@ def start_results(p, w, o):
     o[Rs.RC_START_AMPLITUDE] = swing_amplitude(al - aw, dal - daw, p, w.iw[IW_MODE])
 
 
-@kernel(inline="always")
+@kernel()
 def end_cycle(p, w, jam, o):
     """A load still on the belt when the window closed at T leaves as `jammed` (MODEL.md §14);
     then the results of §11 into o."""
@@ -94,7 +94,11 @@ def rest_accept(p, w, t, h, t1, err, h_next):
     return t1, h_next, False
 
 
-@kernel(inline="always")
+#: the driver's loop with the cycle's step while the fence is alone (kernel/driver.py)
+rest_loop = driver.integrator(step, rest_accept, "cycle_rest_loop")
+
+
+@kernel()
 def rest(p, w, t, t_end, o):
     """The fence alone (no load; the drive at rest after t_c) from t to t_end, stepped under
     the cycle's error control (MODEL.md §8: only the fence's linear ODE remains). Its steps are
@@ -105,7 +109,7 @@ def rest(p, w, t, t_end, o):
     steps = w.count[driver.C_STEPS]
     rejects = w.count[driver.C_REJECTS]
     rhs(t, w.y, p, w.iw, w.K[0], w.aux)
-    t, h, why = driver.integrate(rhs, rest_accept, ctl, p, w, t, t_end, t_end, h)
+    t, h, why = rest_loop(ctl, p, w, t, t_end, t_end, h)
     o[Rs.RC_N_STEPS] += w.count[driver.C_STEPS] - steps
     o[Rs.RC_N_REJECTED] += w.count[driver.C_REJECTS] - rejects
     if why == driver.STOP_MAX_STEPS or why == driver.STOP_UNDERFLOW:
@@ -132,7 +136,7 @@ def not_run(out, k):
         out[j, Rs.RC_STATUS] = Rs.ST_NOT_RUN
 
 
-@kernel(inline="always")
+@kernel()
 def cycle_in_stream(p, w, loads, period, k, out, row_starts):
     """Cycle k of the stream (module docstring): its window, its results in out[k], the rest
     up to the next start. Returns whether the stream goes on."""

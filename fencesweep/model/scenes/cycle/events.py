@@ -11,11 +11,11 @@ from __future__ import annotations
 from fencesweep.kernel import numerics as NU
 from fencesweep.kernel import rk
 from fencesweep.kernel.jit import kernel
-from fencesweep.kernel.search import bisect, peak_max
+from fencesweep.kernel.search import bisector, peak_finder
 from fencesweep.model import layout as Lp
 from fencesweep.model.scenes.contacts import APART, N_SLOTS
 from fencesweep.model.scenes.cycle.layout import IW_CODE, N_CTRL, N_STATE
-from fencesweep.model.scenes.cycle.rhs import rhs
+from fencesweep.model.scenes.cycle.rhs import step
 from fencesweep.model.scenes.cycle.slots import (changed_mask, classify, frame_at, releases, slot_changed,
                                                  slot_eval)
 from fencesweep.model.scenes.load import outcome_margin
@@ -60,6 +60,12 @@ def outcome_reached(ctx, theta):
     return outcome_hit(kind, tmp, p)
 
 
+#: the searches on the dense output (kernel/search.py), bound to the predicates and the gap above
+find_change = bisector(mask_changed, "cycle_find_change")
+find_outcome = bisector(outcome_reached, "cycle_find_outcome")
+min_gap = peak_finder(neg_gap, "cycle_min_gap")
+
+
 @kernel(inline=True)
 def graze_candidate(k, iw, codes1, g0, r0, g1, r1):
     """Can slot k touch inside the step without changing its code at either end? Apart at both
@@ -90,7 +96,7 @@ def graze_theta(p, w, t, h):
     for k in range(N_SLOTS):
         if not graze_candidate(k, w.iw, w.codes1, w.g0, w.r0, w.g1, w.r1):
             continue
-        th, ng = peak_max(neg_gap, (t, h, w.y, w.Q, p, w.iw, w.tmp, k), 0.0, 1.0, NU.PEAK_TOL)
+        th, ng = min_gap((t, h, w.y, w.Q, p, w.iw, w.tmp, k), 0.0, 1.0, NU.PEAK_TOL)
         if ng > 0.0 and th < best and mask_changed((t, h, w.y, w.Q, p, w.iw, w.tmp, 1 << k), th):
             best = th
             slot = k
@@ -120,13 +126,13 @@ def find_event(p, w, t, h, exited):
     kind = 0
     if mask != 0:
         ensure_dense(p, w, h)
-        theta = bisect(mask_changed, (t, h, w.y, w.Q, p, w.iw, w.tmp, mask), 0.0, hi, tol)[1]
+        theta = find_change((t, h, w.y, w.Q, p, w.iw, w.tmp, mask), 0.0, hi, tol)[1]
         kind = 1
     if not exited:
         for oc in range(2):
             if outcome_hit(oc, w.y1, p):
                 ensure_dense(p, w, h)
-                th = bisect(outcome_reached, (w.y, w.Q, p, w.tmp, oc), 0.0, 1.0, tol)[1]
+                th = find_outcome((w.y, w.Q, p, w.tmp, oc), 0.0, 1.0, tol)[1]
                 if th <= theta:
                     theta = th
                     kind = 2 + oc
@@ -141,7 +147,7 @@ def step_part(p, w, t, h, s):
     classified into w.codes1 ... w.tags1. Returns the slots changed there (changed_mask)."""
     for i in range(N_STATE):
         w.Ks[0, i] = w.K[0, i]
-    rk.step(int(p[Lp.METHOD]), rhs, t, w.y, s * h, p, w.iw, w.Ks, w.dy, w.ys, w.auxs, w.atol, p[Lp.TOL], N_CTRL)
+    step(int(p[Lp.METHOD]), t, w.y, s * h, p, w.iw, w.Ks, w.dy, w.ys, w.auxs, w.atol, p[Lp.TOL], N_CTRL)
     classify(t + s * h, w.ys, p, w.iw, w.codes1, w.g1, w.r1, w.tags1)
     return changed_mask(w.iw, w.codes1, w.tags1)
 
@@ -151,8 +157,8 @@ def located(p, w, t, h, lo, hi, Q2, mask):
     """The first change of a slot in mask in [lo, hi] (fractions of h) on the dense output Q2
     of the step [t, t + hi h], just past it (search.bisect)."""
     sh = hi * h
-    return hi * bisect(mask_changed, (t, sh, w.y, Q2, p, w.iw, w.tmp, mask), lo / hi, 1.0,
-                       NU.EVENT_TOL * max(1.0, t) / sh)[1]
+    return hi * find_change((t, sh, w.y, Q2, p, w.iw, w.tmp, mask), lo / hi, 1.0,
+                            NU.EVENT_TOL * max(1.0, t) / sh)[1]
 
 
 @kernel()

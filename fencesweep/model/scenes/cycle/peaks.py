@@ -7,14 +7,14 @@ from __future__ import annotations
 from fencesweep.kernel import numerics as NU
 from fencesweep.kernel import rk
 from fencesweep.kernel.jit import kernel
-from fencesweep.kernel.search import peak_max
+from fencesweep.kernel.search import peak_finder
 from fencesweep.model import layout as Lp
 from fencesweep.model.scenes.cycle.books import record
 from fencesweep.model.scenes.cycle.events import ensure_dense
 from fencesweep.model.scenes.cycle.layout import (A_QMAX, AX_NF, AX_NR, IW_LOAD, IW_MODE, IW_RIDE, N_CTRL, N_Q,
                                                   N_STATE, Q_ALPHA, Q_DEFL, Q_NF, Q_NR, QV_0, QV_1, QV_A, QV_B,
                                                   QV_S, QV_THETA)
-from fencesweep.model.scenes.cycle.rhs import fence_state, rhs
+from fencesweep.model.scenes.cycle.rhs import fence_state, rhs, step
 
 UNJUDGED = -1.0  # rising[k] when the step before did not judge quantity k at its end
 
@@ -54,6 +54,10 @@ def quantity_at(ctx, theta):
     return q[kind]
 
 
+#: Brent's search of a tracked quantity on the dense output (kernel/search.py)
+peak_of = peak_finder(quantity_at, "cycle_peak_of")
+
+
 @kernel(inline=True)
 def near_maximum(q0, q1, acc, k):
     """Can this step hold a new maximum of tracked quantity k? Only if one of its end samples
@@ -84,7 +88,7 @@ def step_to(p, w, t, h, th):
     for i in range(N_STATE):
         w.tmp[i] = w.y[i]
     rhs(t, w.tmp, p, w.iw, w.Ks[0], w.auxs)
-    rk.step(int(p[Lp.METHOD]), rhs, t, w.tmp, th * h, p, w.iw, w.Ks, w.dy, w.ys, w.auxs, w.atol, p[Lp.TOL], N_CTRL)
+    step(int(p[Lp.METHOD]), t, w.tmp, th * h, p, w.iw, w.Ks, w.dy, w.ys, w.auxs, w.atol, p[Lp.TOL], N_CTRL)
 
 
 @kernel()
@@ -161,8 +165,8 @@ def track_maxima(p, w, t, h, theta_end):
             continue
         if rising[k] == 1.0 and qb[k] > q1[k] and max(q1[k], q0[k]) >= NU.PEAK_CANDIDATE * m:
             ensure_dense(p, w, h)
-            th, qm = peak_max(quantity_at, (t, h, w.y, w.Q, p, w.iw, w.tmp, w.auxs, w.dy, w.qv[QV_S], k),
-                              0.0, theta_end, NU.PEAK_TOL)
+            th, qm = peak_of((t, h, w.y, w.Q, p, w.iw, w.tmp, w.auxs, w.dy, w.qv[QV_S], k), 0.0, theta_end,
+                             NU.PEAK_TOL)
             m = max(m, peak_value(p, w, t, h, th, k))
             ths[k] = th
         acc[A_QMAX + k] = m

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 
+from fencesweep.kernel import rk
 from fencesweep.kernel.jit import kernel
 from fencesweep.model import layout as Lp
 from fencesweep.model.contact import belt_friction
@@ -161,3 +162,7 @@ def rhs(t, y, p, iw, dy, aux):
     dy[6] = dal
     dy[7] = (torque + tau) / p[Lp.I2]
     dy[10] = torque * daw
+
+
+#: one step of the integrator with this right-hand side (kernel/rk.py stepper)
+step = rk.stepper(rhs, "cycle_step")

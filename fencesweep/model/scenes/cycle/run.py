@@ -27,7 +27,7 @@ from fencesweep.model.scenes.cycle.events import event_state, find_event
 from fencesweep.model.scenes.cycle.layout import (A_DMAX, A_EXITED, A_QMAX, A_STAGE, A_STATUS, AX_DMAX, N_Q,
                                                   N_STATE, QV_0, QV_1)
 from fencesweep.model.scenes.cycle.peaks import quantities, quantities_from_aux, record_peaks, track_maxima
-from fencesweep.model.scenes.cycle.rhs import rhs
+from fencesweep.model.scenes.cycle.rhs import rhs, step
 from fencesweep.model.scenes.cycle.slots import classify, classify_after_rhs, new_push, stage_of
 
 
@@ -113,7 +113,11 @@ def accept(p, w, t, h, t1, err, h_next):
     return t1, h_next, kind >= 2 or not ok
 
 
-@kernel(inline="always")
+#: the driver's loop with the cycle's step and accept (kernel/driver.py)
+loop = driver.integrator(step, accept, "cycle_loop")
+
+
+@kernel()
 def run(p, w):
     """The cycle's loop (module docstring), from t = 0 with the state, codes and quantities that
     stream.begin_cycle set."""
@@ -133,7 +137,7 @@ def run(p, w):
             drop_load(t, w.y, w.iw, w.acc, Rs.TIMEOUT)
             rhs(t, w.y, p, w.iw, w.K[0], w.aux)
             continue
-        t, h, why = driver.integrate(rhs, accept, ctl, p, w, t, t_end, tc, h)
+        t, h, why = loop(ctl, p, w, t, t_end, tc, h)
         if why == driver.STOP_MAX_STEPS:
             w.acc[A_STATUS] = Rs.ST_MAXSTEPS
         elif why == driver.STOP_UNDERFLOW:
