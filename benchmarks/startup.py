@@ -1,22 +1,28 @@
-"""What a fresh process pays before its first result: this tree against an earlier revision,
-interleaved in one run.
+"""A new user's first run and the warm main job: an earlier revision and this tree side by side,
+interleaved in one run on the same machine (issue "Start fast").
 
-    python benchmarks/startup.py [--before REV] [--repeat 7]   -> prints, writes results/startup.md
+    python benchmarks/startup.py [--before 72ef80b] [--rounds 3]   -> prints, writes results/startup.md
 
-Every sweep worker, every test process and every `fencesweep run` starts by importing the
-package and loading the compiled kernels from Numba's cache; every command builds the CLI's
-parser. Measured, each in a fresh interpreter with a warm cache (one untimed run of each tree
-first, which compiles into that tree's cache):
-  * first cycle: `from fencesweep import api; api.simulate()` (the imports, the kernel load and
-    one long_near cycle), wall time of the process;
-  * --help: `python -m fencesweep --help`, wall time of the process;
-  * python alone: `python -c pass`, the interpreter's own start, for scale.
-REV is exported with git archive into a temporary folder; both trees run with PYTHONPATH set to
-their folder, alternately (before, after, before, ...); medians are reported.
+Measured for both trees, alternately (before, this tree, before, ...):
+  * cold first cycle: `fencesweep.simulate(case="small_far")` in a new process with an empty
+    Numba cache (a fresh NUMBA_CACHE_DIR; the earlier revision's solved values, which it keeps in
+    its package folder, removed too): wall time of the process, and whether it said it compiles;
+  * cold main job: `pip install -e TREE` into a new virtual environment that sees the installed
+    dependencies (--system-site-packages: "dependencies present"), then `fencesweep grid
+    sweeps/b2k2.yaml` with an empty cache, 2 jobs: the two wall times and their sum;
+  * warm main job: the same command again with the cache warm, on 1 and on 2 jobs, pairs
+    interleaved; the ratio of the medians (the issue's bar: 2 jobs >= 1.8 x 1 job);
+  * compilations: Numba's compile events of the cold first cycle (numba.core.event), counted per
+    function.
+The earlier revision is exported with `git archive` into a temporary folder; this tree is the
+working tree. Run it alone on the machine: it takes about 20 minutes.
 """
 from __future__ import annotations
 
 import argparse
+import json
+import os
+import shutil
 import statistics
 import subprocess
 import sys
@@ -24,45 +30,180 @@ import tempfile
 import time
 from pathlib import Path
 
-from main_job_v1_v2 import export  # a revision's package, exported from git
-
 ROOT = Path(__file__).resolve().parents[1]
-FIRST_CYCLE = "from fencesweep import api; api.simulate()"
-PROBES = {"python alone": ["-c", "pass"], "first cycle": ["-c", FIRST_CYCLE],
-          "--help": ["-m", "fencesweep", "--help"]}
+BEFORE = "72ef80b"
+FIRST_CYCLE = "import fencesweep; fencesweep.simulate(case='small_far')"
+NOTICE = "compiling the"  # the first words of this tree's notice on stderr
+COUNT_COMPILES = r"""
+import collections, json, time
+from numba.core import event as ev
+done = []
+class Rec(ev.Listener):
+    def on_start(self, event):
+        pass
+    def on_end(self, event):
+        d = event.data or {}
+        f = getattr(d.get("dispatcher"), "py_func", None)
+        done.append(f"{f.__module__}.{f.__qualname__}" if f else "?")
+ev.register("numba:compile", Rec())
+t = time.perf_counter()
+import fencesweep
+fencesweep.simulate(case="small_far")
+c = collections.Counter(done)
+print(json.dumps({"seconds": time.perf_counter() - t, "compilations": len(done), "functions": len(c),
+                  "most": c.most_common(8)}))
+"""
 
 
-def wall(tree: Path, args: list) -> float:
-    t0 = time.perf_counter()
-    subprocess.run([sys.executable, *args], cwd=tree, env={"PYTHONPATH": str(tree), "PATH": "/usr/bin:/bin"},
-                   check=True, capture_output=True)
-    return time.perf_counter() - t0
+def export(rev: str, where: Path) -> Path:
+    """The whole tree of revision `rev` (package, pyproject.toml, sweeps), exported from git."""
+    where.mkdir(parents=True)
+    arch = subprocess.run(["git", "archive", rev], cwd=ROOT, capture_output=True, check=True)
+    subprocess.run(["tar", "-x", "-C", str(where)], input=arch.stdout, check=True)
+    return where
+
+
+def _env(tree: Path, cache: Path, python_path: bool = True) -> dict:
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("NUMBA_", "PYTHONPATH"))}
+    env["NUMBA_CACHE_DIR"] = str(cache)
+    if python_path:
+        env["PYTHONPATH"] = str(tree)
+    return env
+
+
+def _forget(tree: Path, cache: Path) -> None:
+    """An empty cache: the Numba cache directory, and the solved values and kernel stamp that the
+    earlier revision keeps in its package's __pycache__."""
+    shutil.rmtree(cache, ignore_errors=True)
+    cache.mkdir(parents=True)
+    for name in ("solved.json", "kernels.sha256"):
+        (tree / "fencesweep" / "__pycache__" / name).unlink(missing_ok=True)
+
+
+def _wall(cmd: list, env: dict, cwd: Path) -> tuple:
+    t = time.perf_counter()
+    r = subprocess.run(cmd, env=env, cwd=cwd, capture_output=True, text=True)
+    if r.returncode != 0:
+        raise RuntimeError(f"{cmd} failed: {r.stderr[-2000:]}")
+    return time.perf_counter() - t, r
+
+
+def cold_first_cycle(tree: Path, cache: Path) -> dict:
+    _forget(tree, cache)
+    s, r = _wall([sys.executable, "-c", FIRST_CYCLE], _env(tree, cache), tree)
+    return {"seconds": s, "said": NOTICE in r.stderr}
+
+
+def install(tree: Path, venv: Path) -> float:
+    """`pip install -e TREE` into a new virtual environment over the installed dependencies."""
+    shutil.rmtree(venv, ignore_errors=True)
+    subprocess.run([sys.executable, "-m", "venv", "--system-site-packages", str(venv)], check=True)
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("NUMBA_", "PYTHONPATH"))}
+    s, _ = _wall([str(venv / "bin" / "pip"), "install", "-q", "-e", str(tree)], env, tree)
+    return s
+
+
+def grid(tree: Path, venv: Path, cache: Path, out: Path, jobs: int) -> tuple:
+    out.unlink(missing_ok=True)
+    cmd = [str(venv / "bin" / "fencesweep"), "grid", "sweeps/b2k2.yaml", "--out", str(out), "--jobs", str(jobs),
+           "--no-resume", "--quiet"]
+    return _wall(cmd, _env(tree, cache, python_path=False), tree)
+
+
+def compilations(tree: Path, cache: Path) -> dict:
+    _forget(tree, cache)
+    _, r = _wall([sys.executable, "-c", COUNT_COMPILES], _env(tree, cache), tree)
+    return json.loads(r.stdout.strip().splitlines()[-1])
+
+
+def _med(xs: list) -> float:
+    return statistics.median(xs)
+
+
+def _runs(xs: list) -> str:
+    return ", ".join(f"{x:.1f}" for x in xs)
+
+
+def measure(trees: dict, tmp: Path, rounds: int) -> dict:
+    cache = {k: tmp / f"cache-{i}" for i, k in enumerate(trees)}
+    venv = {k: tmp / f"venv-{i}" for i, k in enumerate(trees)}
+    out = {k: tmp / f"b2k2-{i}.parquet" for i, k in enumerate(trees)}
+    m = {k: {"first": [], "said": [], "install": [], "grid_cold": [], "warm1": [], "warm2": []} for k in trees}
+    for r in range(rounds):
+        for k, tree in trees.items():
+            c = cold_first_cycle(tree, cache[k])
+            m[k]["first"].append(c["seconds"])
+            m[k]["said"].append(c["said"])
+            print(f"round {r + 1}: {k} cold first cycle {c['seconds']:.1f} s", flush=True)
+    for r in range(max(1, rounds - 1)):
+        for k, tree in trees.items():
+            m[k]["install"].append(install(tree, venv[k]))
+            _forget(tree, cache[k])
+            s, _ = grid(tree, venv[k], cache[k], out[k], 2)
+            m[k]["grid_cold"].append(s)
+            print(f"round {r + 1}: {k} install {m[k]['install'][-1]:.1f} s + cold grid {s:.1f} s", flush=True)
+    for r in range(rounds):
+        for jobs in (1, 2):
+            for k, tree in trees.items():
+                s, _ = grid(tree, venv[k], cache[k], out[k], jobs)
+                m[k][f"warm{jobs}"].append(s)
+        print(f"round {r + 1}: warm " + "; ".join(f"{k} {m[k]['warm1'][-1]:.2f} / {m[k]['warm2'][-1]:.2f} s"
+                                                 for k in trees), flush=True)
+    for k, tree in trees.items():
+        m[k]["compiles"] = compilations(tree, cache[k])
+    import pandas as pd
+
+    tables = [pd.read_parquet(out[k]) for k in trees]
+    m["same_table"] = tables[0].equals(tables[1])
+    m["rows"] = len(tables[0])
+    return m
+
+
+def page(m: dict, trees: dict, rounds: int) -> str:
+    b, n = list(trees)
+    lines = ["# Start fast: a first run and the warm main job, before and after, in one run", "",
+             f"Regenerate: `python benchmarks/startup.py --before {b} --rounds {rounds}` (what is measured: its "
+             f"docstring). Wall times on this machine (2 cores), the two trees alternating; medians, with each "
+             f"run in brackets.", "",
+             f"| | {b} | this tree | bar |", "|---|---|---|---|"]
+    first = {k: _med(m[k]["first"]) for k in trees}
+    lines.append(f"| cold first cycle [s] | {first[b]:.1f} ({_runs(m[b]['first'])}) | "
+                 f"{first[n]:.1f} ({_runs(m[n]['first'])}) | <= 10 |")
+    lines.append(f"| ... said it compiles | {'yes' if all(m[b]['said']) else 'no'} | "
+                 f"{'yes' if all(m[n]['said']) else 'no'} | yes |")
+    inst = {k: _med(m[k]["install"]) for k in trees}
+    cold = {k: _med(m[k]["grid_cold"]) for k in trees}
+    lines.append(f"| pip install -e . [s] | {inst[b]:.1f} | {inst[n]:.1f} | |")
+    lines.append(f"| cold main job, 2 jobs [s] | {cold[b]:.1f} ({_runs(m[b]['grid_cold'])}) | "
+                 f"{cold[n]:.1f} ({_runs(m[n]['grid_cold'])}) | |")
+    lines.append(f"| install + cold main job [s] | {inst[b] + cold[b]:.1f} | {inst[n] + cold[n]:.1f} | <= 20 |")
+    for jobs in (1, 2):
+        w = {k: _med(m[k][f"warm{jobs}"]) for k in trees}
+        lines.append(f"| warm main job, {jobs} job{'s' if jobs > 1 else ''} [s] | {w[b]:.2f} "
+                     f"({', '.join(f'{x:.2f}' for x in m[b][f'warm{jobs}'])}) | {w[n]:.2f} "
+                     f"({', '.join(f'{x:.2f}' for x in m[n][f'warm{jobs}'])}) | |")
+    ratio = {k: _med(m[k]["warm1"]) / _med(m[k]["warm2"]) for k in trees}
+    pairs = {k: ", ".join(f"{a / c:.2f}" for a, c in zip(m[k]["warm1"], m[k]["warm2"])) for k in trees}
+    lines.append(f"| 2 jobs / 1 job, warm | {ratio[b]:.2f} ({pairs[b]}) | {ratio[n]:.2f} ({pairs[n]}) | >= 1.8 |")
+    cc = {k: m[k]["compiles"] for k in trees}
+    lines.append(f"| compilations (functions) of the cold first cycle | {cc[b]['compilations']} "
+                 f"({cc[b]['functions']}) | {cc[n]['compilations']} ({cc[n]['functions']}) | one each |")
+    lines += ["", f"The main job's table ({m['rows']} rows) is the same from both trees: {m['same_table']}.", "",
+              "Most compiled functions of the cold first cycle (compilations):", ""]
+    for k in trees:
+        lines.append(f"* {k}: " + ", ".join(f"{f.rsplit('.', 1)[-1]} {c}" for f, c in cc[k]["most"]))
+    return "\n".join(lines) + "\n"
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--before", default="ecc777a", help="the earlier revision (default ecc777a)")
-    ap.add_argument("--repeat", type=int, default=7)
+    ap.add_argument("--before", default=BEFORE, help=f"the earlier revision (default {BEFORE})")
+    ap.add_argument("--rounds", type=int, default=3)
     a = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
-        trees = {a.before: export(a.before, Path(tmp) / a.before), "this tree": ROOT}
-        for tree in trees.values():
-            wall(tree, ["-c", FIRST_CYCLE])  # compile into (or check) this tree's cache
-        times = {(name, probe): [] for name in trees for probe in PROBES}
-        for _ in range(a.repeat):
-            for probe, args in PROBES.items():
-                for name, tree in trees.items():
-                    times[name, probe].append(wall(tree, args))
-    lines = ["# Start-up of a process: before and after, in one run", "",
-             f"Regenerate: `python benchmarks/startup.py --before {a.before}` (what is measured: its docstring). "
-             f"Wall time of a fresh process with a warm Numba cache, median of {a.repeat} runs, the two trees "
-             "alternating.", "",
-             f"| probe | {a.before} [s] | this tree [s] | saved [s] |", "|---|---|---|---|"]
-    for probe in PROBES:
-        b = statistics.median(times[a.before, probe])
-        n = statistics.median(times["this tree", probe])
-        lines.append(f"| {probe} | {b:.3f} | {n:.3f} | {b - n:.3f} |")
-    text = "\n".join(lines) + "\n"
+        trees = {a.before: export(a.before, Path(tmp) / "before"), "this tree": ROOT}
+        m = measure(trees, Path(tmp), a.rounds)
+    text = page(m, trees, a.rounds)
     print(text)
     (ROOT / "results" / "startup.md").write_text(text)
 

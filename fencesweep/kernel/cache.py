@@ -10,8 +10,9 @@ with <hash> a digest of every kernel source (kernel/ and model/, where any compi
 or a constant it reads lives) and <base> Numba's NUMBA_CACHE_DIR when it is set, else the
 package's __pycache__ when it is writable, else the user's cache directory. An edited
 source gives a new directory: nothing stale is ever loaded, and nothing needs deleting (an old
-directory is left for another checkout that may still use it). `KernelLocator` tells Numba so;
-it is registered before any kernel is compiled (kernel/jit.py imports this module).
+directory is left for another checkout that may still use it). kernel/jit.py's `KernelLocator`
+tells Numba so. This module itself does not import Numba: a command can ask whether the
+kernels are compiled (`is_warm`) before it loads them.
 
 The same directory keeps
   * the values solved once per input by root finding (`solved`: the contact damping from e,
@@ -32,8 +33,6 @@ import sys
 import tempfile
 from pathlib import Path
 
-from fencesweep.kernel.numba_setup import numba  # noqa: F401  (first: Numba loaded as the kernels need it)
-from numba.core import caching, config
 
 PKG = Path(__file__).resolve().parents[1]  # the package
 #: the sub-packages whose sources a compiled kernel can include
@@ -66,8 +65,8 @@ def _writable(path: Path) -> bool:
 
 def _base() -> Path:
     """NUMBA_CACHE_DIR, else the package's __pycache__ if writable, else the user's cache directory."""
-    if config.CACHE_DIR:
-        return Path(config.CACHE_DIR)
+    if os.environ.get("NUMBA_CACHE_DIR"):  # Numba's own setting, read as Numba reads it
+        return Path(os.environ["NUMBA_CACHE_DIR"])
     here = PKG / "__pycache__"
     if _writable(here):
         return here
@@ -75,46 +74,6 @@ def _base() -> Path:
 
 
 DIR = _base() / f"fencesweep-{HASH[:16]}"
-
-
-class KernelLocator(caching._CacheLocator):
-    """Numba's cache locator for the package's kernels (module docstring): their cache files go
-    to DIR, under the path of their module, and are valid while the kernel hash is."""
-
-    def __init__(self, py_func, py_file):
-        self._lineno = py_func.__code__.co_firstlineno
-        self._path = DIR / Path(py_file).resolve().relative_to(PKG).parent
-
-    def get_cache_path(self):
-        return str(self._path)
-
-    def get_source_stamp(self):
-        return HASH
-
-    def get_disambiguator(self):
-        return str(self._lineno)
-
-    @classmethod
-    def from_function(cls, py_func, py_file):
-        try:
-            Path(py_file).resolve().relative_to(PKG)
-        except ValueError:  # not a function of this package: Numba's own locators decide
-            return None
-        self = cls(py_func, py_file)
-        try:
-            self.ensure_cache_path()
-        except OSError:  # nowhere to write: Numba's own locators (or no cache) then
-            return None
-        return self
-
-
-def _register() -> None:
-    impl = getattr(caching, "CacheImpl", None) or caching._CacheImpl
-    if KernelLocator not in impl._locator_classes:
-        impl._locator_classes.insert(0, KernelLocator)
-
-
-_register()
 
 
 # ------------------------------------------------------------------ values solved once

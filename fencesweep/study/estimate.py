@@ -4,8 +4,10 @@ The spec is planned (its scenes counted, resolved and deduplicated: the same che
 run, so a bad spec fails here too), one run of each variant warms the engine up and a short
 sample of runs spread over the sweep is timed; the estimate is the runs still to do (chunks
 already saved in the work directory are counted as done) times the seconds per run, divided
-by the local processes a real run would use. A spec too large to plan in this machine's memory
-is counted only. Nothing is written.
+by the local processes a real run would use. When the kernels are not compiled on this machine
+yet, the warm-up compiles them, and the estimate includes that time (a first run pays it; the
+dry run has paid it now). A spec too large to plan in this machine's memory is counted only.
+Nothing is written.
 
 `Estimate.lines()` is the text that `--dry-run` prints; `describe_plan` the plan's part of it,
 which a real run also logs (skipped scenes, unused axes).
@@ -17,10 +19,15 @@ from pathlib import Path
 from typing import Callable
 
 from fencesweep.errors import UsageError
+from fencesweep.kernel import cache
 from fencesweep.study import output
 from fencesweep.study import plan as PL
 from fencesweep.study import runs
 from fencesweep.study import spec as S
+
+
+#: the kernel group (kernel/cache.py) that each scene's runs compile
+KERNELS = {"cycle": "cycle", "stream": "cycle", "impact": "impact", "freefall": "impact"}
 
 
 @dataclass
@@ -42,10 +49,11 @@ class Estimate:
     work: Path | None = None  # the work directory
     runs_left: int | None = None  # model runs still to do
     warm_up: float | None = None  # seconds the engine's warm-up took (loading the kernels)
+    compiled: bool = False  # the warm-up compiled the kernels (they were not in the cache)
     per_run: float | None = None  # seconds per model run, timed on `timed_runs` runs
     timed_runs: int = 0
     jobs: int | None = None  # local processes a real run would use (None: a Dask cluster's workers)
-    seconds: float | None = None  # estimated seconds on `jobs` (on Dask: of work in all)
+    seconds: float | None = None  # estimated seconds on `jobs` (on Dask: of work in all), compiling included
     stop: str | None = None  # why a real run would stop before it starts (None: it would start)
     unavailable: str | None = None  # why the time could not be estimated (the engine failed)
 
@@ -90,14 +98,17 @@ class Estimate:
         lines = [f"  note: a real run would stop before it starts: {self.stop}"] if self.stop else []
         if self.chunks_done:
             lines.append(f"  already done: {self.chunks_done} chunks in {self.work}")
-        lines.append(f"  engine: warm-up {self.warm_up:.2f} s; {self.per_run * 1e3:.3g} ms per run "
+        compiled = " (compiling the kernels: first run on this machine)" if self.compiled else ""
+        lines.append(f"  engine: warm-up {self.warm_up:.2f} s{compiled}; {self.per_run * 1e3:.3g} ms per run "
                      f"(timed on {self.timed_runs} runs)")
+        split = (f" ({human(self.warm_up)} compiling, done now; {human(self.seconds - self.warm_up)} running)"
+                 if self.compiled else "")
         if self.jobs:
             lines.append(f"  estimated time on {self.jobs} job{'s' if self.jobs > 1 else ''}: {human(self.seconds)} "
-                         f"for {self.runs_left} runs")
+                         f"for {self.runs_left} runs{split}")
         else:
             lines.append(f"  estimated time: {human(self.seconds)} of work for {self.runs_left} runs, divided by "
-                         f"the cluster's workers")
+                         f"the cluster's workers{split}")
         return lines
 
 
@@ -138,6 +149,7 @@ def estimate(spec: S.Spec, out: Path, jobs: int, resume: bool = True, backend: s
     work = output.work_root(out) / plan.salt[:16]
     if plan.chunk_size is None and resume:
         plan.chunk_size = output.recorded_chunk_size(work)
+    compiled = simulate is None and not cache.is_warm(KERNELS.get(spec.scene, "cycle"))
     try:
         t_warm = runs.warm_up(plan, simulate)
         per_run, k = runs.time_sample(plan, simulate)
@@ -148,7 +160,7 @@ def estimate(spec: S.Spec, out: Path, jobs: int, resume: bool = True, backend: s
     if plan.chunk_size is None:
         plan.chunk_size = runs.auto_chunk_size(plan.n_models, per_run)
     est = of_plan(plan, out)
-    est.work, est.warm_up, est.per_run, est.timed_runs = work, t_warm, per_run, k
+    est.work, est.warm_up, est.per_run, est.timed_runs, est.compiled = work, t_warm, per_run, k, compiled
     if not overwrite:
         try:
             output.check_output(spec, out)
@@ -158,5 +170,5 @@ def estimate(spec: S.Spec, out: Path, jobs: int, resume: bool = True, backend: s
     est.chunks_done = len(done)
     est.runs_left = plan.n_models - sum(len(plan.chunk_models(c)) for c in done)
     est.jobs = runs.local_jobs(jobs, per_run * est.runs_left) if backend == "loky" else None
-    est.seconds = per_run * est.runs_left / (est.jobs or 1)
+    est.seconds = per_run * est.runs_left / (est.jobs or 1) + (t_warm if compiled else 0.0)
     return est
