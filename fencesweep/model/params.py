@@ -232,7 +232,7 @@ def resolve(scene: str = "cycle", case: str | None = None, loads: Any = None,  #
         vals[name] = check_value(name, value)
     # derived values (MODEL.md §3, §4, §12)
     if vals["I2"] is None:
-        vals["I2"] = vals["m2"] * vals["l"] ** 2 / 3.0
+        vals["I2"] = fence_inertia(vals["m2"], vals["l"])
     if vals["t_max"] is None:
         vals["t_max"] = vals["t_c"] + 1.0
     if vals["profile"] == "crank_rocker" and vals["coupler_ratio"] <= math.sin(vals["swing"] / 2):
@@ -335,8 +335,14 @@ def _load_entry(k: int, entry: Any) -> dict[str, Any]:
     return out
 
 
+def fence_inertia(m2: float, l: float) -> float:
+    """I2 = m2 l^2 / 3 [kg m^2], a uniform bar about its end (docs/model.md (3.1)): the fence's
+    moment of inertia when I2 is not given."""
+    return m2 * l ** 2 / 3.0
+
+
 def relative_damping(B2: float, K2: float, I2: float) -> float:
-    """Psi = B2 / (2 sqrt(K2 I2)) (paper §4.2, MODEL.md §3); inf when K2 = 0 and B2 > 0."""
+    """Psi = B2 / (2 sqrt(K2 I2)) (paper §4.2, docs/model.md (3.5)); inf when K2 = 0 and B2 > 0."""
     if K2 <= 0.0:
         return math.inf if B2 > 0 else math.nan
     return B2 / (2.0 * math.sqrt(K2 * I2))
@@ -367,7 +373,8 @@ _START_NAMES = ("R_s", "l", "L", "A", "phi0", "dP", "P_max")
 
 @lru_cache(maxsize=4096)  # a sweep repeats the load's placing in most of its scenes
 def _start_problem(R_s: float, l: float, L: float, A: float, phi0: float, dP: float, P_max: float) -> str | None:
-    """Why the load cannot start there (_check_start's message), or None."""
+    """Why the load cannot start there (_check_start's message), or None: it must start upstream
+    of the tip, R_s < l, and entirely on the belt, max_j y_Gj(0) <= P_max (docs/model.md (1.6))."""
     if R_s >= l:
         return f"R_s = {R_s!r} is not allowed: the load would start past the fence; R_s must be < l = {l!r}"
     xc, yc = initial_centroid(L, A, phi0, R_s, dP)

@@ -150,7 +150,8 @@ def unpack_cycles(out: np.ndarray) -> dict:
 
 
 def stream_summary(cycles: dict, period: float) -> dict:
-    """The results of a stream (MODEL.md §14, STREAM_RESULTS) from its cycles' ({name: list})."""
+    """The results of a stream (docs/model.md §14, STREAM_RESULTS) from its cycles' ({name: list}):
+    the counts, the first failure, the worst values and the throughput 3600 / T (14.5)."""
     outcomes = cycles["outcome"]
     first = next((k for k, o in enumerate(outcomes) if o != "scraped"), -1)
 

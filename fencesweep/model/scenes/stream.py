@@ -34,7 +34,7 @@ from fencesweep.model.scenes.cycle.books import apply_contact_change, drop_load,
 from fencesweep.model.scenes.cycle.layout import (A_EXITED, A_QMAX, A_STATUS, A_T_EXIT, IW_EDGE, IW_MODE, IW_RIDE,
                                                   N_ACC, N_AUX, N_IW, N_Q, N_QV, N_STATE, QV_0, Work)
 from fencesweep.model.scenes.cycle.peaks import quantities_from_aux
-from fencesweep.model.scenes.cycle.rhs import fence_state, rhs, step
+from fencesweep.model.scenes.cycle.rhs import deflection, fence_state, rhs, step
 from fencesweep.model.scenes.cycle.run import run
 from fencesweep.model.scenes.cycle.slots import classify, in_contact
 
@@ -42,7 +42,8 @@ from fencesweep.model.scenes.cycle.slots import classify, in_contact
 @kernel()
 def cycle_params(p, load, period, last, pk):
     """pk: the parameters of one cycle of a stream, the scene's p with this cycle's load; every
-    cycle but the last ends at the next one's start T at the latest (MODEL.md §14)."""
+    cycle but the last ends at the next one's start T at the latest: its window closes at
+    min(t_max, T) (docs/model.md (14.2))."""
     for i in range(Lp.N_LOAD):
         pk[Lp.LOAD_SLOTS[i]] = load[i]
     pk[Lp.TMAX] = p[Lp.TMAX] if last else min(p[Lp.TMAX], period)
@@ -50,9 +51,9 @@ def cycle_params(p, load, period, last, pk):
 
 @kernel()
 def begin_cycle(p, w):
-    """A new load at tau = 0 (MODEL.md §1) with the fence's (alpha, alpha') that w.y holds
-    (0, 0 for the first cycle): the contacts it starts in, f(0, y), the tracked quantities'
-    first values and the first trajectory row."""
+    """A new load at tau = 0 (docs/model.md §1) with the fence's (alpha, alpha') that w.y holds
+    (0, 0 for the first cycle; carried over, docs/model.md (14.3): books.start): the contacts it
+    starts in, f(0, y), the tracked quantities' first values and the first trajectory row."""
     start(p, w)
     w.iw[IW_EDGE] = classify(0.0, w.y, p, w.iw, w.codes1, w.g0, w.r0, w.tags1)
     apply_contact_change(0.0, w.y, p, w.iw, w.codes1, w.iw[IW_EDGE], w.acc)
@@ -68,11 +69,12 @@ def begin_cycle(p, w):
 
 @kernel()
 def start_results(p, w, o):
-    """MODEL.md §14: start_deflection dalpha(t_k), start_rate dalpha'(t_k), start_amplitude."""
+    """docs/model.md (14.4): start_deflection dalpha(t_k), start_rate dalpha'(t_k), start_amplitude."""
     al, dal, aw, daw = fence_state(0.0, w.y, p, w.iw[IW_MODE])
-    o[Rs.RC_START_DEFLECTION] = al - aw
-    o[Rs.RC_START_RATE] = dal - daw
-    o[Rs.RC_START_AMPLITUDE] = swing_amplitude(al - aw, dal - daw, p, w.iw[IW_MODE])
+    dev, rate = deflection(al, dal, aw, daw)
+    o[Rs.RC_START_DEFLECTION] = dev
+    o[Rs.RC_START_RATE] = rate
+    o[Rs.RC_START_AMPLITUDE] = swing_amplitude(dev, rate, p, w.iw[IW_MODE])
 
 
 @kernel()
@@ -120,8 +122,11 @@ def rest(p, w, t, t_end, o):
 
 
 @kernel()
-def shift_times(traj, first, stop, t_k):
-    """Trajectory rows first .. stop - 1 (those that fit) from the cycle's time to the stream's."""
+def shift_times(traj, first, stop, k, period):
+    """Trajectory rows first .. stop - 1 (those that fit) of cycle k from the cycle's time tau to
+    the stream's t = t_k + tau, t_k = k T (docs/model.md (14.1)); every kernel of the cycle runs
+    on tau."""
+    t_k = k * period
     for r in range(first, min(stop, traj.shape[0])):
         traj[r, 0] += t_k
 
@@ -152,7 +157,7 @@ def cycle_in_stream(p, w, loads, period, k, out, row_starts):
     ok = w.acc[A_STATUS] == Rs.ST_OK
     if ok and not last:
         ok = rest(pk, w, max(pk[Lp.TC], w.acc[A_T_EXIT]), period, out[k])
-    shift_times(w.traj, row_starts[k], w.row[0], k * period)
+    shift_times(w.traj, row_starts[k], w.row[0], k, period)
     return ok
 
 
