@@ -1,4 +1,4 @@
-"""The drive's kinematic constraint alpha_w(t) (MODEL.md §2).
+"""The drive's kinematic constraint alpha_w(t) (docs/model.md §2).
 
 crank_rocker: a four-bar with time ratio 1 (rocker c = 1, crank a = sin(psi/2),
 coupler b = r_b, ground d = sqrt(b^2 + cos^2(psi/2))), open assembly; harmonic:

@@ -27,7 +27,7 @@ _METHOD = {"dopri5": METHOD_DOPRI5, "rk4": METHOD_RK4}
 
 @lru_cache(maxsize=4096)
 def freefall_force(m1: float, k1: float, e: float, law: str, k_lin: float | None, H: float) -> float:
-    """Peak of N when the load falls from H onto an undeformable surface (MODEL.md §7), at the
+    """Peak of N when the load falls from H onto an undeformable surface (docs/model.md §7), at the
     default tolerance whatever a cycle's step_factor (the reference of its overload)."""
     from fencesweep.model.results import N_IMPACT_RESULTS, RJ
 
@@ -136,7 +136,7 @@ def _numerics(p: np.ndarray, vals: dict) -> None:
 
 
 def load_table(vals: dict) -> np.ndarray:
-    """The kernel's loads table of a stream (MODEL.md §14): one row per cycle, the entries of
+    """The kernel's loads table of a stream (docs/model.md §14): one row per cycle, the entries of
     the parameter vector that belong to that cycle's load (layout.LOAD_SLOTS), each distinct
     load prepared once. Without a list of loads every cycle has the scene's load."""
     from fencesweep.model.params import LOAD_NAMES

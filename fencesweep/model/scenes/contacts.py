@@ -1,10 +1,10 @@
-"""The contacts of the load (MODEL.md §5): one small compiled function per kind for its
+"""The contacts of the load (docs/model.md §5): one small compiled function per kind for its
 geometry (penetration D, its rate, the gap and the gap's rate when apart) and one for its
 forces (on the load, the moment on the fence, N and the dissipated powers of §11).
 
 Contact slots of the cycle: corner-fence j -> j (0-3), corner-rail j -> 4 + j, tip-edge -> 8.
 A slot is APART (no penetration or out of its span), PUSH (penetrating, N > 0: it carries
-force) or CLIPPED (penetrating with the Kelvin force <= 0: N = 0, MODEL.md §4).
+force) or CLIPPED (penetrating with the Kelvin force <= 0: N = 0, docs/model.md §4).
 """
 from __future__ import annotations
 
@@ -55,7 +55,7 @@ def friction_power(f, w):
     return -f * w
 
 
-# ---------------- corner-fence (MODEL.md §5.1) ----------------
+# ---------------- corner-fence (docs/model.md §5.1) ----------------
 
 @kernel(inline=True)
 def corner_fence_geometry(gx, gy, gvx, gvy, ca, sa, dal, sg):
@@ -80,7 +80,7 @@ def corner_fence_force(rx, ry, gvx, gvy, s, D, Dd, sg, ca, sa, kc, cd, law, mu2,
     return cfx, cfy, rx * cfy - ry * cfx, -sg * n * s, n, damping_power(n, n_el, Dd), friction_power(f, wsl)
 
 
-# ---------------- corner-rail (MODEL.md §5.3) ----------------
+# ---------------- corner-rail (docs/model.md §5.3) ----------------
 
 @kernel(inline=True)
 def corner_rail_force(rx, ry, gvx, gvy, gy, kc, cd, law, mu2, eps, push):
@@ -94,7 +94,7 @@ def corner_rail_force(rx, ry, gvx, gvy, gy, kc, cd, law, mu2, eps, push):
     return f, n, rx * n - ry * f, n, damping_power(n, n_el, Dd), friction_power(f, gvx)
 
 
-# ---------------- tip-edge (MODEL.md §5.2) ----------------
+# ---------------- tip-edge (docs/model.md §5.2) ----------------
 
 @kernel(inline=True)
 def tip_position(fl, ca, sa):

@@ -1,4 +1,4 @@
-"""Scene `freefall` (MODEL.md §7): the load dropped from H onto an undeformable surface:
+"""Scene `freefall` (docs/model.md §7): the load dropped from H onto an undeformable surface:
 speed v_H = sqrt(2 g H), rigid wall, 1 DOF, no gravity during the contact. Its peak force is
 the permitted dynamic load that a cycle's overload is measured against. It is the impact
 scene on a rigid wall (scenes/impact.py), run with that scene's one compiled entry point."""

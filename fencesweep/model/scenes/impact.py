@@ -1,4 +1,4 @@
-"""Scene `impact` (paper §4.1, MODEL.md §8): a material point m1 hits the fence's point at
+"""Scene `impact` (paper §4.1, docs/model.md §8): a material point m1 hits the fence's point at
 distance R from the pivot with normal speed w.
 
 The fence is rigid (I2 = inf), flexible (Kelvin element B2, K2 to a drive at rest) or free

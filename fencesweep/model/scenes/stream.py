@@ -1,4 +1,4 @@
-"""Scene `stream` (MODEL.md §14): work cycles back to back, one load each, the fence's
+"""Scene `stream` (docs/model.md §14): work cycles back to back, one load each, the fence's
 (alpha, alpha') carried from one cycle into the next; and the one entry point of both `cycle`
 and `stream` (a cycle is a stream of one: `run_cycles` with one load).
 
@@ -79,7 +79,7 @@ def start_results(p, w, o):
 
 @kernel()
 def end_cycle(p, w, jam, o):
-    """A load still on the belt when the window closed at T leaves as `jammed` (MODEL.md §14);
+    """A load still on the belt when the window closed at T leaves as `jammed` (docs/model.md §14);
     then the results of §11 into o."""
     if jam and w.acc[A_EXITED] == 0.0 and w.acc[A_STATUS] == Rs.ST_OK:
         drop_load(p[Lp.TMAX], w.y, w.iw, w.acc, Rs.JAMMED)
@@ -103,7 +103,7 @@ rest_loop = driver.integrator(step, rest_accept, "cycle_rest_loop")
 @kernel()
 def rest(p, w, t, t_end, o):
     """The fence alone (no load; the drive at rest after t_c) from t to t_end, stepped under
-    the cycle's error control (MODEL.md §8: only the fence's linear ODE remains). Its steps are
+    the cycle's error control (docs/model.md §8: only the fence's linear ODE remains). Its steps are
     added to the cycle's n_steps and n_rejected; a rest that cannot be stepped fails the cycle."""
     method = int(p[Lp.METHOD])
     ctl = (method, p[Lp.TOL], p[Lp.H_MAX], p[Lp.DT], NU.H_MIN)
@@ -163,7 +163,7 @@ def cycle_in_stream(p, w, loads, period, k, out, row_starts):
 
 @entry()
 def run_cycles(p, loads, period, out, traj, row_starts):
-    """Simulate len(loads) work cycles starting every `period` [s] (MODEL.md §14; one cycle:
+    """Simulate len(loads) work cycles starting every `period` [s] (docs/model.md §14; one cycle:
     the scene `cycle`), load k's parameters in loads[k] (layout.LOAD_SLOTS); write row k of out
     (STREAM_CYCLE_RESULTS) and the time series into traj (rows of TRAJ_COLUMNS, as many as
     fit), the first row of cycle k into row_starts[k] (row_starts[n]: the count). Returns the

@@ -1,4 +1,4 @@
-"""The tracked maxima of a cycle (MODEL.md §11: peak_force, peak_rail_force, deflection_max,
+"""The tracked maxima of a cycle (docs/model.md §11: peak_force, peak_rail_force, deflection_max,
 alpha_max), located inside each step (§9: "and so is the peak force"): a quantity that rises at
 the step's start and falls at its end has an interior maximum, found by Brent's search on the
 step's dense output (kernel/search.py) and valued at the state of a step of the method to it."""
@@ -144,7 +144,7 @@ def judge_fence(p, w, t, h, theta_end):
 def track_maxima(p, w, t, h, theta_end):
     """Running maxima of the tracked quantities over the step [t, t + theta_end h]: the end
     samples, and an interior maximum (the quantity rising at the start and falling at the
-    end, judged on the dense output) located by Brent's search (search.peak_max, MODEL.md §9).
+    end, judged on the dense output) located by Brent's search (search.peak_max, docs/model.md §9).
     w.rising[k] says whether quantity k rose at the start (1, 0; UNJUDGED when the step before
     was far from its maximum, or after an event: rising[N_Q] = 1); on return it says so for
     the step's end. The fence's quantities are judged by their derivatives at the ends

@@ -1,4 +1,4 @@
-"""The cycle's right-hand side (MODEL.md §3, §5, §6): the fence's equation, the load's contacts
+"""The cycle's right-hand side (docs/model.md §3, §5, §6): the fence's equation, the load's contacts
 and its belt friction. Between events it is smooth: it evaluates only the contacts whose slot
 is not APART, in the mode (iw) fixed at the step's start."""
 from __future__ import annotations
@@ -96,7 +96,7 @@ def tip_sum(y, p, iw, ca, sa, dal, cphi, sphi, aux):
 
 @kernel(inline=True)
 def contact_sum(y, p, iw, ca, sa, dal, aux):
-    """Sum into aux the forces of every slot that is not APART (MODEL.md §5): on the load
+    """Sum into aux the forces of every slot that is not APART (docs/model.md §5): on the load
     (AX_FX, AX_FY, AX_TQ), the moment on the fence (AX_TAU), the normal-force sums and the
     dissipated powers."""
     cphi = math.cos(y[2])

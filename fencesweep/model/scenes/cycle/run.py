@@ -1,4 +1,4 @@
-"""The cycle's loop (MODEL.md §8-§9): kernel/driver.py's `integrate` with the cycle's right-hand
+"""The cycle's loop (docs/model.md §8-§9): kernel/driver.py's `integrate` with the cycle's right-hand
 side and `accept`, the cycle's handling of each accepted step:
 
   the step's end classified -> the first event inside it located on its dense output (a contact

@@ -1,4 +1,4 @@
-"""The contact slots of the cycle at a state (MODEL.md §5): each slot's code (APART / PUSH /
+"""The contact slots of the cycle at a state (docs/model.md §5): each slot's code (APART / PUSH /
 CLIPPED, contacts.next_code), its tag (a corner's side sigma_j, §5.1; the tip's edge, §5.2), and
 its gap and the gap's rate (> 0 apart: what the graze check minimises); the stages (§10).
 
@@ -155,7 +155,7 @@ def changed_mask(iw, codes, tags):
 
 @kernel(inline=True)
 def take_sides(iw, tags):
-    """Side memory sigma_j (MODEL.md §5.1) from classify's tags at the step's end (corner_side
+    """Side memory sigma_j (docs/model.md §5.1) from classify's tags at the step's end (corner_side
     applies the rule). Returns whether any side changed."""
     changed = False
     for j in range(RAIL0):
@@ -167,7 +167,7 @@ def take_sides(iw, tags):
 
 @kernel(inline=True)
 def releases(iw, codes):
-    """Are codes releases only: some slots pushing in iw clipped in codes (MODEL.md §4: N
+    """Are codes releases only: some slots pushing in iw clipped in codes (docs/model.md §4: N
     returned to 0), every other slot's code as in iw?"""
     rel = False
     for k in range(N_SLOTS):
