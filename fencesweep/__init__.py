@@ -1,4 +1,4 @@
-"""fencesweep: Numba-accelerated sweeps of an active rotary fence (MODEL.md).
+"""fencesweep: Numba-accelerated sweeps of an active rotary fence (docs/model.md).
 
 One scene: simulate, simulate_resolved, resolve. Studies of many (README, Python API for
 sweeps): grid, estimate, design, sensitivity, as the CLI's commands, and points (an envelope

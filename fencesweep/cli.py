@@ -112,7 +112,7 @@ STREAM_COLUMNS = ("outcome", "t_exit", "overload", "deflection_max", "residual_a
 
 
 def _print_stream(args: argparse.Namespace, res: dict, traj) -> None:
-    """A stream's results (MODEL.md §14): the summary and the per-cycle table, or one JSON object."""
+    """A stream's results (docs/model.md §14): the summary and the per-cycle table, or one JSON object."""
     from fencesweep.model.results import STREAM_RESULTS, UNITS
 
     cycles = res["cycles"]
@@ -346,7 +346,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--scene", default="cycle", choices=P.SCENES)
     run.add_argument("--case", default=None, choices=tuple(P.CASES))
     run.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                     help="override a parameter of MODEL.md §12 (repeatable)")
+                     help="override a parameter of docs/model.md §12 (repeatable)")
     run.add_argument("--json", action="store_true", help="print one JSON object (an undefined result, e.g. t_first_contact without contact, is null)")
     run.add_argument("--trajectory", metavar="PATH.parquet", help="write the time series for plotting "
                      "(a stream's: the whole stream, with a cycle column)")

@@ -9,7 +9,7 @@ import pytest
 
 
 def tip_depth(row, vals):
-    """Depth of the fence tip in the load (MODEL.md §5.2, separating-axis edge choice), or 0."""
+    """Depth of the fence tip in the load (docs/model.md §5.2, separating-axis edge choice), or 0."""
     L, A, l = vals["L"], vals["A"], vals["l"]
     c, s = math.cos(row.phi), math.sin(row.phi)
     to_local = lambda px, py: (c * (px - row.x) + s * (py - row.y), -s * (px - row.x) + c * (py - row.y))
@@ -23,7 +23,7 @@ def tip_depth(row, vals):
 
 
 def penetrations(row, vals):
-    """Depth of every geometrically penetrated contact in a row (MODEL.md §5), by name."""
+    """Depth of every geometrically penetrated contact in a row (docs/model.md §5), by name."""
     L, A, l = vals["L"], vals["A"], vals["l"]
     ca, sa = math.cos(row.alpha), math.sin(row.alpha)
     c, s = math.cos(row.phi), math.sin(row.phi)
@@ -43,11 +43,11 @@ def penetrations(row, vals):
 
 @pytest.fixture(name="tip_depth")
 def _tip_depth():
-    """tip_depth(row, vals): the fence tip's depth in the load of a trajectory row (MODEL.md §5.2)."""
+    """tip_depth(row, vals): the fence tip's depth in the load of a trajectory row (docs/model.md §5.2)."""
     return tip_depth
 
 
 @pytest.fixture(name="penetrations")
 def _penetrations():
-    """penetrations(row, vals): every penetrated contact's depth in a trajectory row (MODEL.md §5)."""
+    """penetrations(row, vals): every penetrated contact's depth in a trajectory row (docs/model.md §5)."""
     return penetrations

@@ -1,4 +1,4 @@
-"""Contact laws and their calibration (MODEL.md §4, §6, §7) against closed forms and MODEL.md values."""
+"""Contact laws and their calibration (docs/model.md §4, §6, §7) against closed forms and MODEL.md values."""
 import math
 
 import numpy as np
@@ -48,7 +48,7 @@ def test_normal_force_is_clipped_and_starts_from_zero():
 
 def test_freefall_peak_matches_model_value():
     r = simulate("freefall")
-    assert r["peak_force"] == pytest.approx(6414.0, abs=1.0)  # MODEL.md §7: 6.414 kN
+    assert r["peak_force"] == pytest.approx(6414.0, abs=1.0)  # docs/model.md §7: 6.414 kN
 
 
 def test_freefall_without_damping_matches_hertz_closed_form():
@@ -65,7 +65,7 @@ def test_freefall_without_damping_matches_hertz_closed_form():
 def test_rigid_wall_impulse_and_restitution(e, law):
     m1, w = 7.0, 1.3
     r = simulate("impact", drive="rigid", e=e, m1=m1, w=w, contact_law=law)
-    assert r["impulse"] == pytest.approx(m1 * w * (1 + e), rel=1e-6)  # MODEL.md §7
+    assert r["impulse"] == pytest.approx(m1 * w * (1 + e), rel=1e-6)  # docs/model.md §7
     assert r["e_eff"] == pytest.approx(e, abs=1e-6)
 
 
@@ -96,7 +96,7 @@ def test_friction_never_exceeds_its_limit():
         ux, uy, om = rng.normal(size=3) * 10 ** rng.uniform(-6, 1, size=3)
         fmax, mmax = rng.uniform(0.1, 100), rng.uniform(0.01, 10)
         fx, fy, m = belt_friction(ux, uy, om, fmax, mmax, mmax / fmax, eps)
-        # the force-moment pair stays inside the limit ellipse (Goyal-Ruina, MODEL.md §6)
+        # the force-moment pair stays inside the limit ellipse (Goyal-Ruina, docs/model.md §6)
         assert (fx * fx + fy * fy) / fmax**2 + (m / mmax) ** 2 <= 1 + 1e-12
         assert fx * ux + fy * uy + m * om <= 1e-12  # dissipative
 

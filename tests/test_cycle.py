@@ -1,4 +1,4 @@
-"""Scene `cycle` (MODEL.md §1-§11) against closed forms, conservation laws and the paper."""
+"""Scene `cycle` (docs/model.md §1-§11) against closed forms, conservation laws and the paper."""
 import math
 
 import numpy as np
@@ -132,7 +132,7 @@ def test_named_cases_scraped_rigid_and_flexible_paper_4_2(case):
 
 
 def test_small_far_rigid_overload_matches_model_swing_statement():
-    # MODEL.md §12: at 42 deg the rigid-fence small_far overload is 0.97, at 45 deg 1.06
+    # docs/model.md §12: at 42 deg the rigid-fence small_far overload is 0.97, at 45 deg 1.06
     assert simulate(case="small_far", drive="rigid")["overload"] == pytest.approx(0.97, abs=0.006)
     assert simulate(case="small_far", drive="rigid", swing=math.radians(45))["overload"] == \
         pytest.approx(1.06, abs=0.006)
@@ -147,7 +147,7 @@ def test_long_near_slides_with_fence_and_rail_S4():
 @pytest.mark.parametrize("case", ["small_far", "long_near"])
 def test_energy_balance_closes(case, penetrations):
     # drive work + belt work = change of kinetic and elastic energy + all dissipation,
-    # checked from row to row of the trajectory. A contact of MODEL.md §5 can appear or
+    # checked from row to row of the trajectory. A contact of docs/model.md §5 can appear or
     # vanish at a finite depth (a pressed corner slides past the tip; the tip enters the
     # load through one edge while the separating-axis rule measures from another); there the
     # elastic energy jumps by geometry alone, so those few increments are skipped and counted
@@ -180,7 +180,7 @@ def test_energy_balance_closes(case, penetrations):
 
 
 def test_results_converge_as_friction_regularisation_vanishes():
-    # MODEL.md §5: results must converge as eps_v -> 0. Each tenfold smaller eps_v changes
+    # docs/model.md §5: results must converge as eps_v -> 0. Each tenfold smaller eps_v changes
     # the results less (up to the integrator's own error, ~1e-6 here at step_factor 0.2).
     rs = [simulate(case="small_far", eps_v=eps, step_factor=0.2) for eps in (1e-2, 1e-3, 1e-4)]
     for key in ("peak_force", "x_exit", "t_exit", "deflection_max"):

@@ -1,4 +1,4 @@
-"""The drive's kinematic constraint (MODEL.md §2)."""
+"""The drive's kinematic constraint (docs/model.md §2)."""
 import math
 
 import numpy as np

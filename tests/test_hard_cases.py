@@ -14,7 +14,7 @@ I2 = 5.0 * 1.2**2 / 3
 
 
 def _k2_for_psi(psi, B2=72.0):
-    """K2 giving relative damping Psi = B2 / (2 sqrt(K2 I2)) (MODEL.md §3)."""
+    """K2 giving relative damping Psi = B2 / (2 sqrt(K2 I2)) (docs/model.md §3)."""
     return (B2 / (2 * psi)) ** 2 / I2
 
 
@@ -55,7 +55,7 @@ def test_hard_case_is_stable_and_converges(name):
         assert all(math.isfinite(r[k]) for k in ("t_exit", "peak_force", "deflection_max", "alpha_max",
                                                   "damper_energy", "contact_energy", "x_exit"))
     vals = resolve("cycle", kw.get("case"), **{k: v for k, v in kw.items() if k != "case"})
-    # no tunnelling: far below the failure bound of MODEL.md §5 (half the smaller side); the
+    # no tunnelling: far below the failure bound of docs/model.md §5 (half the smaller side); the
     # soft contact k1 = 1e5 puts the tip 1.09 cm below the edge it pushes (§5.2)
     assert a["max_penetration"] < 0.25 * min(vals["L"], vals["A"])
     assert a["outcome"] == b["outcome"]

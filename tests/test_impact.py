@@ -1,4 +1,4 @@
-"""Scene `impact` (paper §4.1, MODEL.md §8): conservation, classical impact theory, Fig. 5b."""
+"""Scene `impact` (paper §4.1, docs/model.md §8): conservation, classical impact theory, Fig. 5b."""
 import pytest
 
 from fencesweep import simulate
@@ -17,14 +17,14 @@ def test_free_fence_impulse_matches_classical_theory_paper_eq1():
 
 
 def test_free_fence_effective_restitution_below_e():
-    # MODEL.md §4: q is tied to m1, so against a moving fence the effective e is lower
+    # docs/model.md §4: q is tied to m1, so against a moving fence the effective e is lower
     r = simulate("impact", drive="free")
     assert 0.0 < r["e_eff"] < 0.2
 
 
 @pytest.mark.parametrize("m2, quotient, tol", [(5.0, 1.74, 0.02), (1.0, 2.37, 0.03), (50.0, 1.20, 0.02)])
 def test_fig5b_rigid_over_free_peak_quotient(m2, quotient, tol):
-    # MODEL.md §13.3: m1 = 15 kg, R = 1.2 m, w = 2 m/s, I2 = m2 l^2/3
+    # docs/model.md §13.3: m1 = 15 kg, R = 1.2 m, w = 2 m/s, I2 = m2 l^2/3
     rigid = simulate("impact", drive="rigid", m2=m2)["peak_force"]
     free = simulate("impact", drive="free", m2=m2)["peak_force"]
     assert rigid / free == pytest.approx(quotient, abs=tol)

@@ -45,35 +45,7 @@ DOC_SECTION_CITATION = re.compile(r"(?<![A-Za-z])model\.md §(\d+)")
 #: indexed functions whose docstrings do not cite docs/model.md yet, in files that others own or
 #: are rewriting. Strict xfail: once such a docstring cites its equation "(n.k)", its check
 #: passes, which fails the run as XPASS until the entry is removed here.
-PENDING = {
-    "fencesweep/kernel/integrate.py::dense_eval",
-    "fencesweep/kernel/integrate.py::error_norm",
-    "fencesweep/kernel/integrate.py::hermite_basis",
-    "fencesweep/kernel/integrate.py::next_step",
-    "fencesweep/model/params.py::_start_problem",
-    "fencesweep/model/params.py::relative_damping",
-    "fencesweep/model/prepare.py::_contact_part",
-    "fencesweep/model/prepare.py::_numerics",
-    "fencesweep/model/results.py::stream_summary",
-    "fencesweep/model/scenes/cycle.py::add_contact",
-    "fencesweep/model/scenes/cycle.py::apply_contact_change",
-    "fencesweep/model/scenes/cycle.py::at_t_c",
-    "fencesweep/model/scenes/cycle.py::error_estimate",
-    "fencesweep/model/scenes/cycle.py::error_scales",
-    "fencesweep/model/scenes/cycle.py::fence_state",
-    "fencesweep/model/scenes/cycle.py::load_rhs",
-    "fencesweep/model/scenes/cycle.py::quantities",
-    "fencesweep/model/scenes/cycle.py::rhs",
-    "fencesweep/model/scenes/cycle.py::stage_of",
-    "fencesweep/model/scenes/cycle.py::swing_amplitude",
-    "fencesweep/model/scenes/cycle.py::try_ride",
-    "fencesweep/model/scenes/freefall.py::freefall_kernel",
-    "fencesweep/model/scenes/impact.py::impact_rhs",
-    "fencesweep/model/scenes/impact.py::penetration",
-    "fencesweep/model/scenes/stream.py::begin_cycle",
-    "fencesweep/model/scenes/stream.py::cycle_params",
-    "fencesweep/model/scenes/stream.py::start_results",
-}
+PENDING: set[str] = set()
 
 
 @dataclass(frozen=True)

@@ -1,9 +1,9 @@
 """params.model_key, the sweep's de-duplication key, as a property.
 
 A sweep simulates each key once and fills every scene with that key from the one run
-(MODEL.md §8: model only what a scene needs). If two parameter sets that differ in a
+(docs/model.md §8: model only what a scene needs). If two parameter sets that differ in a
 parameter the scene uses shared a key, one of them would silently get the other's results.
-For every scene and every parameter of MODEL.md §12 (and the engine settings), hypothesis
+For every scene and every parameter of docs/model.md §12 (and the engine settings), hypothesis
 draws a parameter set and a second one that differs in that parameter alone, and checks
 
 * a parameter the scene uses (USES below, written from MODEL.md, not from params.py)
@@ -20,7 +20,7 @@ from hypothesis import strategies as st
 from fencesweep.model import params as P
 from fencesweep import simulate_resolved
 
-#: draws around the defaults, inside MODEL.md §12's bounds, so that each run stays short
+#: draws around the defaults, inside docs/model.md §12's bounds, so that each run stays short
 RANGES = {
     "v": (0.5, 3.0), "P_max": (0.7, 1.0), "mu1": (0.0, 0.8), "mu2": (0.0, 0.8), "L": (0.05, 0.7),
     "A": (0.01, 0.3), "m1": (1.0, 30.0), "dP": (0.0, 0.3), "R_s": (-0.5, 0.5), "phi0": (-0.3, 0.3),
@@ -52,7 +52,7 @@ def value(name: str):
 
 
 def uses(scene: str, vals: dict, given: dict) -> set:
-    """The parameters the scene's model reads (MODEL.md §3, §4, §5, §7, §8, §11, §12), for the
+    """The parameters the scene's model reads (docs/model.md §3, §4, §5, §7, §8, §11, §12), for the
     resolved set `vals` whose explicit inputs were `given`."""
     law = {"m1", "e", "k1", "contact_law"} | ({"k_lin"} if vals["contact_law"] == "linear" else set())
     # the engine stops a run whose penetration exceeds half the load's smaller side (§5), in
@@ -108,7 +108,7 @@ def test_sets_that_differ_in_a_used_parameter_never_share_a_key(scene, name, dat
 
 
 def test_the_keys_the_property_found_merged():
-    # a free fall or an impact reads the load's size: the penetration bound of MODEL.md §5
+    # a free fall or an impact reads the load's size: the penetration bound of docs/model.md §5
     # failed the 1 cm wide load's free fall that shared the default's key
     for scene in ("freefall", "impact"):
         assert P.model_key(P.resolve(scene)) != P.model_key(P.resolve(scene, A=0.01))

@@ -1,7 +1,7 @@
 """Figures and the report render headless from small synthetic tables and trajectories.
 
 No engine runs here: the inputs are tiny DataFrames with the columns the engine writes
-(sweep tables: MODEL.md §11/§12 names; trajectories: scenes.cycle.TRAJ_COLUMNS), so the
+(sweep tables: docs/model.md §11/§12 names; trajectories: scenes.cycle.TRAJ_COLUMNS), so the
 test checks the drawing and the bookkeeping, fast.
 """
 from __future__ import annotations

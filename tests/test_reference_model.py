@@ -32,7 +32,7 @@ def test_q_calibration_is_consistent():
 def test_freefall_peak_and_impulse():
     r = ref.simulate_reference({}, scene="freefall")
     assert r["status"] == "ok"
-    assert abs(r["peak_force"] - 6414.0) < 1.0            # MODEL.md §4, §7: 6.414 kN
+    assert abs(r["peak_force"] - 6414.0) < 1.0            # docs/model.md §4, §7: 6.414 kN
     vH = math.sqrt(2 * G * 0.3)
     assert r["impulse"] == pytest.approx(15.0 * vH * 1.2, rel=1e-8)   # m1 w (1 + e)
     assert r["e_eff"] == pytest.approx(0.2, abs=1e-8)
@@ -85,7 +85,7 @@ def test_rho_bar_unit_square():
     assert ref.rho_bar(1.0, 1.0) == pytest.approx(0.38260, abs=5e-6)
 
 
-# --- §8 impact: the paper's Fig. 5b ratio (MODEL.md §13.3) --------------------------------
+# --- §8 impact: the paper's Fig. 5b ratio (docs/model.md §13.3) --------------------------------
 
 def test_impact_rigid_over_free_peak_ratio():
     rigid = ref.simulate_reference({"drive": "rigid"}, scene="impact")
@@ -118,7 +118,7 @@ def test_free_ride_escape_time_closed_form():
 
 
 def test_small_far_rigid_overload_042():
-    # MODEL.md §12: rigid fence, swing 42 deg, small_far: overload 0.97
+    # docs/model.md §12: rigid fence, swing 42 deg, small_far: overload 0.97
     r = ref.simulate_reference({"case": "small_far", "drive": "rigid"}, rtol=1e-8)
     assert r["outcome"] == "scraped"
     assert r["overload"] == pytest.approx(0.97, abs=0.005)
@@ -127,7 +127,7 @@ def test_small_far_rigid_overload_042():
 
 
 def test_paper_flexible_fence_contacts_longer_and_carries_further():
-    # MODEL.md §13.6 for both unfavourable loads
+    # docs/model.md §13.6 for both unfavourable loads
     for case in ("small_far", "long_near"):
         flex = ref.simulate_reference({"case": case}, rtol=1e-7)
         rig = ref.simulate_reference({"case": case, "drive": "rigid"}, rtol=1e-7)

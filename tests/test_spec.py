@@ -129,7 +129,7 @@ def test_psi_as_an_axis_and_paper_value():
     sp = load("grid: {Psi: [0.5, 0.973, 2]}")
     vals = [sp.resolve(i) for i in range(3)]
     assert [S.psi_of(v) for v in vals] == pytest.approx([0.5, 0.973, 2.0], rel=1e-11)
-    # MODEL.md §3: 72/570 with m2 = 5, l = 1.2 gives Psi = 0.973
+    # docs/model.md §3: 72/570 with m2 = 5, l = 1.2 gives Psi = 0.973
     assert S.psi_of(P.resolve("cycle")) == pytest.approx(0.973, abs=5e-4)
 
 

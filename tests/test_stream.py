@@ -1,4 +1,4 @@
-"""Scene `stream` (MODEL.md §14): work cycles back to back, the fence's state carried over.
+"""Scene `stream` (docs/model.md §14): work cycles back to back, the fence's state carried over.
 
 The reductions of §14: a stream of one is a `cycle`, bit for bit; a period long enough for
 the element to settle makes every cycle the first; a lightly damped element at T = t_c starts
@@ -24,7 +24,7 @@ def same_value(a, b) -> bool:
 
 
 def settling_time(vals: dict) -> float:
-    """MODEL.md §14: tau, the element's slowest decay time (2 I2 / B2 when Psi <= 1, else 1 / lambda_slow)."""
+    """docs/model.md §14: tau, the element's slowest decay time (2 I2 / B2 when Psi <= 1, else 1 / lambda_slow)."""
     B2, K2, I2 = vals["B2"], vals["K2"], vals["I2"]
     if B2 * B2 <= 4 * K2 * I2:
         return 2 * I2 / B2

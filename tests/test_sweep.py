@@ -142,7 +142,7 @@ def test_table_has_every_parameter_and_result_with_units(tmp_path):
     schema = pq.read_schema(res.out)
     names = schema.names
     assert names[:2] == ["scene", "case"]
-    assert names[2:2 + len(P.NAMES)] == list(P.NAMES)  # MODEL.md §12 order, step_factor included
+    assert names[2:2 + len(P.NAMES)] == list(P.NAMES)  # docs/model.md §12 order, step_factor included
     assert "Psi" in names
     assert names[-len(R.CYCLE_RESULTS):] == [n for n, _, _ in R.CYCLE_RESULTS]
     u = store.units(res.out)
@@ -591,7 +591,7 @@ def test_real_engine_impact_sweep_same_for_1_and_2_jobs(tmp_path):
     assert (df.status == "ok").all()
     rigid = df[df.drive == "rigid"].peak_force.to_numpy()
     free = df[df.drive == "free"].peak_force.to_numpy()
-    assert np.all(rigid / free > 1.0)  # MODEL.md §13.3: the rigid fence hits harder
+    assert np.all(rigid / free > 1.0)  # docs/model.md §13.3: the rigid fence hits harder
     one = api.simulate("impact", m2=float(df.m2.iloc[4]), drive="free")
     assert one["peak_force"] == df.peak_force.iloc[4]
 

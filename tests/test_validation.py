@@ -1,7 +1,7 @@
 """The engine against the independent reference, scene by scene.
 
 benchmarks/reference_results.csv holds, for every scene of
-benchmarks/validation_scenes.yaml, the fully resolved MODEL.md §12 parameters and the
+benchmarks/validation_scenes.yaml, the fully resolved docs/model.md §12 parameters and the
 results of benchmarks/reference.py (SciPy DOP853 at rtol 1e-10 with event restarts;
 regenerate with `python benchmarks/make_reference.py --force`).  Each row is run through
 the engine with every §12 parameter of the row (make_reference.row_params), and the
@@ -34,7 +34,7 @@ import fencesweep
 #: CSV (rtol 1e-10) and a rerun at rtol 1e-11 differ by at most 1.3e-9 in these three
 #: measures (with the floors below) over the 103 scenes checked.
 ERR_BOUND = 1e-4
-#: Floor of the force scale [fraction of the scene's freefall_force, MODEL.md §7]: a
+#: Floor of the force scale [fraction of the scene's freefall_force, docs/model.md §7]: a
 #: scene whose peak force is 0 (no contact) or a few N (a graze, a load resting on the
 #: fence) is judged on the scale of the forces that matter for its overload, not
 #: relative to ~0.
@@ -107,7 +107,7 @@ def test_csv_matches_the_scenes():
         fence, rail = touches(ref)
         assert fence == math.isfinite(ref["t_first_contact"]), s["id"]
         assert rail == (ref["peak_rail_force"] > 0.0), s["id"]
-    # the grazes are what their names say (MODEL.md §5 kinds; see validation_scenes.yaml)
+    # the grazes are what their names say (docs/model.md §5 kinds; see validation_scenes.yaml)
     for kind, col in (("corner_fence", "fence"), ("tip_edge", "tip"), ("corner_rail", "rail"),
                       ("tip_clip", "tip")):
         graze, miss = by_id["graze_" + kind], by_id["miss_" + kind]
@@ -174,7 +174,7 @@ def test_error_estimate_follows_the_true_error():
     assert within >= 0.7 * judged, f"estimate within 10x of the true error in {within} of {judged} scenes"
 
 
-#: Scenes whose impact ends (N back to 0, MODEL.md §4) inside a long step. With the state at the
+#: Scenes whose impact ends (N back to 0, docs/model.md §4) inside a long step. With the state at the
 #: release read off that step's dense output (whose later stages lie past the kink of max(N, 0))
 #: their largest errors were 6.7e-5, 9.4e-6, 1.9e-5 and 1.4e-6; located on the method's flow
 #: (cycle.release_state) 1.7e-6, 5.9e-7, 1.6e-6 and 4.4e-9.

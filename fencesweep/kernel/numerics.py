@@ -1,7 +1,7 @@
 """Every step size and tolerance of the engine, in one place, each with its reason.
 
 The physics has no tunable constants: these settle only how finely the equations of
-MODEL.md are solved. setup.py turns them into the kernel's parameter vector (layout.py);
+docs/model.md are solved. setup.py turns them into the kernel's parameter vector (layout.py);
 the kernels read them from there. `benchmarks/work_precision.py` measures what they buy.
 """
 from __future__ import annotations
@@ -51,7 +51,7 @@ FAC_MAX = 10.0
 
 #: Largest step, as a fraction of the shortest time scale of the
 #: fence (the cycle t_c, the element's natural period 2 pi sqrt(I2/K2)): a step then spans less
-#: than a quarter of any oscillation of the fence, so each gap function of MODEL.md §5 has at
+#: than a quarter of any oscillation of the fence, so each gap function of docs/model.md §5 has at
 #: most one interior extremum in it, which the graze check and the peak finder (scenes/cycle.py)
 #: rely on (after the exit too: a free fence's deflection is not unimodal over a long step).
 H_MAX_PER_PERIOD = 1.0 / 12.0
@@ -63,7 +63,7 @@ EVENT_TOL = 1e-12
 
 #: A contact released inside a step (a PUSH slot that stops pushing) is located on the method's
 #: own flow, not on the step's dense output alone: the step's later stages lie past the kink
-#: of max(N, 0) (MODEL.md §4), and its dense output at the release is off by several atol in
+#: of max(N, 0) (docs/model.md §4), and its dense output at the release is off by several atol in
 #: the velocities (mid_tc0.6_rigid: 5-8 atol, a 2.4e-4 rad/s error in omega that became a
 #: 6.7e-5 error in t_exit, issue 13). cycle.release_state steps to the release, located anew on
 #: the dense output of each step that passes it, until one passes it by at most RELEASE_TOL
@@ -100,7 +100,7 @@ PEAK_TOL = 1e-6
 PEAK_CANDIDATE = 0.999
 
 #: Slip speed [m/s, relative to eps_v] under which a load without contacts is put back on the
-#: belt's closed-form ride (MODEL.md §8). Below eps_v the belt friction decays the slip at the
+#: belt's closed-form ride (docs/model.md §8). Below eps_v the belt friction decays the slip at the
 #: rate lambda = mu1 g / eps_v (~4e3 1/s by default), so the ride that remains costs a position
 #: error of at most slip / lambda = 1e-3 eps_v^2 / (mu1 g) (~2.5e-10 m), and the explicit
 #: method no longer has to step that stiff decay.

@@ -134,7 +134,8 @@ def step(method, t, y, h, p, iw, K, tmp, y1, aux, atol, rtol, n_ctrl):
 def error_norm(K, h, y0, y1, atol, rtol, n_ctrl):
     """RMS over the first n_ctrl components of e_i / sc_i, with e = h sum_k E_k K_k the
     difference of the 5th- and 4th-order solutions and sc_i = atol_i + rtol max(|y0_i|, |y1_i|)
-    (Hairer et al. II.4, eq. 4.11). A component with atol_i = inf is not controlled."""
+    (Hairer et al. II.4, eq. 4.11; docs/model.md (15.3)). A component with atol_i = inf is not
+    controlled."""
     acc = 0.0
     for m in range(n_ctrl):
         e = 0.0
@@ -166,15 +167,15 @@ def dense_coeffs(method, K, h, y0, y1, Q, n):
 
 @kernel(inline=True)
 def dense_eval(y0, Q, theta, out, n):
-    """y(t0 + theta h) on the first n components (Horner in theta)."""
+    """y(t0 + theta h) on the first n components (Horner in theta; docs/model.md (15.6))."""
     for m in range(n):
         out[m] = y0[m] + theta * (Q[0, m] + theta * (Q[1, m] + theta * (Q[2, m] + theta * Q[3, m])))
 
 
 @kernel(inline=True)
 def next_step(h, err, safety, fac_min, fac_max):
-    """Step after one with error norm err (II.4, eq. 4.13): h (1/err)^(1/5), damped by a
-    safety factor and kept within [fac_min, fac_max] times h."""
+    """Step after one with error norm err (II.4, eq. 4.13; docs/model.md (15.4)): h (1/err)^(1/5),
+    damped by a safety factor and kept within [fac_min, fac_max] times h."""
     if err == 0.0:
         return h * fac_max
     fac = safety * err ** (-1.0 / (DP_ORDER_EST + 1))

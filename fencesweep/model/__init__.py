@@ -1,1 +1,1 @@
-"""The physics of MODEL.md: parameters, laws, drive, calibration, the compiled scenes, simulate."""
+"""The physics of docs/model.md: parameters, laws, drive, calibration, the compiled scenes, simulate."""

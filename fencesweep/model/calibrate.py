@@ -1,4 +1,4 @@
-"""The damping coefficient of the contact law solved from the restitution e (MODEL.md §4).
+"""The damping coefficient of the contact law solved from the restitution e (docs/model.md §4).
 
 In the dimensionless rigid-wall impact x'' = -max(x^1.5 + q x^0.25 x', 0) (hertz) or
 x'' = -max(x + beta x', 0) (linear), x(0) = 0, x'(0) = 1, the rebound speed at the first
@@ -14,7 +14,7 @@ import numpy as np
 from fencesweep.model import layout as Lp
 from fencesweep.kernel.cache import solved
 
-#: tolerance of the calibration's impacts: e(q) to ~1e-10, far below the 2e-4 of MODEL.md §4
+#: tolerance of the calibration's impacts: e(q) to ~1e-10, far below the 2e-4 of docs/model.md §4
 CALIBRATION_TOL = 1e-12
 
 
@@ -37,7 +37,7 @@ def restitution(c: float, law: str) -> float:
 
 @lru_cache(maxsize=None)
 def damping_coefficient(e: float, law: str = "hertz") -> float:
-    """Dimensionless damping q (hertz) or beta (linear) that gives restitution e (MODEL.md §4);
+    """Dimensionless damping q (hertz) or beta (linear) that gives restitution e (docs/model.md §4);
     b_lin = beta sqrt(m1 k_lin), q enters as q sqrt(m1 k1). Solved once per (e, law) and kept
     beside the compiled kernels (_cache.solved)."""
     return solved("damping_coefficient", (float(e), law), lambda: solve_damping_coefficient(float(e), law))

@@ -1,4 +1,4 @@
-"""Contact and friction laws (MODEL.md §4, §5, §6) and their closed forms (§7).
+"""Contact and friction laws (docs/model.md §4, §5, §6) and their closed forms (§7).
 
 Compiled pieces (one formula each) are used inside the kernels. The damping coefficient
 solved from e lives in calibrate.py (it runs the impact scene).
@@ -69,7 +69,7 @@ def hertz_peak(m1: float, k1: float, v0: float) -> float:
 
 
 def hertz_contact_time(m1: float, k1: float, v0: float) -> float:
-    """Undamped Hertz contact duration [s]: 3.2181 (m1^2 / (k1^2 v0))^0.2 (MODEL.md §7)."""
+    """Undamped Hertz contact duration [s]: 3.2181 (m1^2 / (k1^2 v0))^0.2 (docs/model.md §7)."""
     return float(python_callable(pulse_time)(Lp.LAW_HERTZ, m1, k1, v0))
 
 

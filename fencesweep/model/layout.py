@@ -1,13 +1,13 @@
 """Index layout of the float64 parameter vector `p` that every compiled kernel reads.
 
 Module-level integers are compile-time constants for Numba. `setup.prepare` fills the
-vector from a resolved parameter dict (MODEL.md §12) plus derived constants. It holds only
+vector from a resolved parameter dict (docs/model.md §12) plus derived constants. It holds only
 what a kernel reads: a §12 value that enters only through a derived one (k1, k_lin and e
 through KC and CD, mu1 through FMAX and MMAX, m2 through I2, coupler_ratio through the drive
 table, w as the impact kernel's argument, step_factor through TOL and DT) has no slot.
 """
 
-# --- MODEL.md §12, in its order ---
+# --- docs/model.md §12, in its order ---
 V = 0
 PMAX = 1
 MU2 = 2
@@ -38,7 +38,7 @@ CD = 25  # damping coefficient of the active law: q sqrt(m1 k1) (hertz) or b_lin
 FMAX = 26  # mu1 m1 g
 MMAX = 27  # mu1 m1 g rho_bar
 RHO = 28  # M_max / F_max
-FFORCE = 29  # free-fall reference peak force (MODEL.md §7)
+FFORCE = 29  # free-fall reference peak force (docs/model.md §7)
 DAW_MAX = 30  # max |d alpha_w / dt| (the velocity scale of the error control)
 TAB_N = 31  # number of intervals of the crank-rocker table (0 for the harmonic profile)
 OMEGA_C = 32  # 2 pi / t_c, the crank's angular speed [rad/s]
@@ -57,10 +57,10 @@ LAW_HERTZ, LAW_LINEAR = 0, 1
 DRIVE_FLEXIBLE, DRIVE_RIGID, DRIVE_FREE = 0, 1, 2
 PROFILE_CRANK_ROCKER, PROFILE_HARMONIC = 0, 1
 
-G = 9.81  # m/s^2, MODEL.md §6
+G = 9.81  # m/s^2, docs/model.md §6
 
 
-# --- one load of a stream (MODEL.md §14): the entries of p that change with the load, in the
+# --- one load of a stream (docs/model.md §14): the entries of p that change with the load, in the
 # order of a row of the kernel's `loads` table (setup.load_table); the rest of p is the scene's ---
 LOAD_SLOTS = (LL, AA, M1, DP, RS, PHI0, I1, KC, CD, FMAX, MMAX, RHO, FFORCE)
 N_LOAD = len(LOAD_SLOTS)

@@ -1,4 +1,4 @@
-"""The parameter table of MODEL.md §12: names, units, defaults, checks, named cases.
+"""The parameter table of docs/model.md §12: names, units, defaults, checks, named cases.
 
 This is the one place defaults live. The CLI, the YAML sweep specs and the Parquet
 columns use exactly these names; everything else only overrides them.
@@ -23,7 +23,7 @@ SCENES = ("cycle", "impact", "freefall", "stream")
 
 @dataclass(frozen=True)
 class Param:
-    """One row of MODEL.md §12 (or a numerical setting of the engine)."""
+    """One row of docs/model.md §12 (or a numerical setting of the engine)."""
 
     name: str
     unit: str
@@ -49,10 +49,10 @@ class Param:
 
 
 _PI = math.pi
-#: most work cycles of one stream (MODEL.md §14): 1e6 cycles hold ~0.3 GB of per-cycle results
+#: most work cycles of one stream (docs/model.md §14): 1e6 cycles hold ~0.3 GB of per-cycle results
 MAX_CYCLES = 1_000_000
 
-#: MODEL.md §12, in its order. Units in brackets in the docs.
+#: docs/model.md §12, in its order. Units in brackets in the docs.
 TABLE: tuple[Param, ...] = (
     Param("v", "m/s", 2.0, "belt speed", lo=0.0, hi=50.0, lo_open=True),
     Param("P_max", "m", 0.7, "belt width", lo=0.0, hi=20.0, lo_open=True),
@@ -110,14 +110,14 @@ TABLE: tuple[Param, ...] = (
 BY_NAME: dict[str, Param] = {p.name: p for p in TABLE}
 NAMES: tuple[str, ...] = tuple(p.name for p in TABLE)
 
-#: The paper's unfavourable positions (§4.2), MODEL.md §12.
+#: The paper's unfavourable positions (§4.2), docs/model.md §12.
 CASES: dict[str, dict[str, float]] = {
     "small_far": {"L": 0.2, "A": 0.1, "dP": 0.6},
     "long_near": {"L": 0.7, "A": 0.1, "dP": 0.0},
 }
 
 #: Which parameters each scene's model uses (the rest are carried but ignored). L and A enter
-#: every scene: a penetration beyond half the load's smaller side fails the run (MODEL.md §5).
+#: every scene: a penetration beyond half the load's smaller side fails the run (docs/model.md §5).
 SCENE_USES: dict[str, frozenset] = {
     "freefall": frozenset({"m1", "e", "k1", "contact_law", "k_lin", "H", "L", "A"}),
     "impact": frozenset({"m1", "e", "k1", "contact_law", "k_lin", "H", "l", "m2", "I2", "B2", "K2",
@@ -125,7 +125,7 @@ SCENE_USES: dict[str, frozenset] = {
     "cycle": frozenset(set(NAMES) - {"R", "w", "n_cycles", "period"}),
     "stream": frozenset(set(NAMES) - {"R", "w"}),
 }
-#: the parameters of one load of a stream (MODEL.md §14), the columns of a loads table
+#: the parameters of one load of a stream (docs/model.md §14), the columns of a loads table
 LOAD_NAMES = ("L", "A", "m1", "dP", "R_s", "phi0")
 
 
@@ -133,7 +133,7 @@ _DEFAULTS = {p.name: p.default for p in TABLE}  # immutable values: a shallow co
 
 
 def defaults() -> dict[str, Any]:
-    """Every parameter at its MODEL.md §12 default (derived ones as None)."""
+    """Every parameter at its docs/model.md §12 default (derived ones as None)."""
     return dict(_DEFAULTS)
 
 
@@ -230,9 +230,9 @@ def resolve(scene: str = "cycle", case: str | None = None, loads: Any = None,  #
         vals.update(CASES[case])
     for name, value in overrides.items():
         vals[name] = check_value(name, value)
-    # derived values (MODEL.md §3, §4, §12)
+    # derived values (docs/model.md §3, §4, §12)
     if vals["I2"] is None:
-        vals["I2"] = vals["m2"] * vals["l"] ** 2 / 3.0
+        vals["I2"] = fence_inertia(vals["m2"], vals["l"])
     if vals["t_max"] is None:
         vals["t_max"] = vals["t_c"] + 1.0
     if vals["profile"] == "crank_rocker" and vals["coupler_ratio"] <= math.sin(vals["swing"] / 2):
@@ -260,10 +260,10 @@ def _short(x: Any) -> str:
 
 
 def _check_stream(vals: dict[str, Any], loads: Any) -> None:
-    """MODEL.md §14: period >= t_c, a drive that stays connected, one load per cycle."""
+    """docs/model.md §14: period >= t_c, a drive that stays connected, one load per cycle."""
     if vals["drive"] == "free":
         raise ParameterError("drive = 'free' is not allowed with scene = 'stream': the free fence is released at "
-                             "its first contact and never driven again (MODEL.md §14); drive must be 'flexible' "
+                             "its first contact and never driven again (docs/model.md §14); drive must be 'flexible' "
                              "or 'rigid'")
     if vals["period"] is not None and vals["period"] < vals["t_c"]:
         raise ParameterError(f"period = {vals['period']!r} is not allowed: a cycle's drive turns for t_c, so "
@@ -279,11 +279,11 @@ def _check_stream(vals: dict[str, Any], loads: Any) -> None:
 
 
 def resolve_loads(loads: Any, vals: dict[str, Any]) -> tuple:
-    """A list of loads -> one tuple (L, A, m1, dP, R_s, phi0) per cycle (MODEL.md §14).
+    """A list of loads -> one tuple (L, A, m1, dP, R_s, phi0) per cycle (docs/model.md §14).
 
     `loads` is a pandas DataFrame, or a list whose entries are a named case or a mapping, each
     with columns / keys among LOAD_NAMES (and `case` in a mapping); what a row does not give is
-    the scene's (`vals`). Every load must start on the belt (MODEL.md §1)."""
+    the scene's (`vals`). Every load must start on the belt (docs/model.md §1)."""
     if hasattr(loads, "to_dict") and hasattr(loads, "columns"):  # a pandas DataFrame
         bad = [c for c in loads.columns if c not in LOAD_NAMES]
         if bad:
@@ -299,7 +299,7 @@ def resolve_loads(loads: Any, vals: dict[str, Any]) -> tuple:
 
 
 def _load_row(k: int, entry: Any, vals: dict[str, Any]) -> tuple:
-    """Row k of a loads list, completed from the scene's values and checked (MODEL.md §1)."""
+    """Row k of a loads list, completed from the scene's values and checked (docs/model.md §1)."""
     row = {n: vals[n] for n in LOAD_NAMES}
     row.update(_load_entry(k, entry))
     try:
@@ -335,28 +335,34 @@ def _load_entry(k: int, entry: Any) -> dict[str, Any]:
     return out
 
 
+def fence_inertia(m2: float, l: float) -> float:
+    """I2 = m2 l^2 / 3 [kg m^2], a uniform bar about its end (docs/model.md (3.1)): the fence's
+    moment of inertia when I2 is not given."""
+    return m2 * l ** 2 / 3.0
+
+
 def relative_damping(B2: float, K2: float, I2: float) -> float:
-    """Psi = B2 / (2 sqrt(K2 I2)) (paper §4.2, MODEL.md §3); inf when K2 = 0 and B2 > 0."""
+    """Psi = B2 / (2 sqrt(K2 I2)) (paper §4.2, docs/model.md (3.5)); inf when K2 = 0 and B2 > 0."""
     if K2 <= 0.0:
         return math.inf if B2 > 0 else math.nan
     return B2 / (2.0 * math.sqrt(K2 * I2))
 
 
 def load_corners(L: float, A: float, phi: float) -> list[tuple[float, float]]:
-    """Corner offsets from the centroid, j = 0..3 at local (+L/2,+A/2), (-L/2,+A/2), ... (MODEL.md §1)."""
+    """Corner offsets from the centroid, j = 0..3 at local (+L/2,+A/2), (-L/2,+A/2), ... (docs/model.md §1)."""
     c, s = math.cos(phi), math.sin(phi)
     loc = ((L / 2, A / 2), (-L / 2, A / 2), (-L / 2, -A / 2), (L / 2, -A / 2))
     return [(c * a - s * b, s * a + c * b) for a, b in loc]
 
 
 def initial_centroid(L: float, A: float, phi0: float, R_s: float, dP: float) -> tuple[float, float]:
-    """MODEL.md §1: foremost corner at x = R_s, lowest corner at y = dP."""
+    """docs/model.md §1: foremost corner at x = R_s, lowest corner at y = dP."""
     cs = load_corners(L, A, phi0)
     return R_s - max(x for x, _ in cs), dP - min(y for _, y in cs)
 
 
 def _check_start(vals: dict[str, Any]) -> None:
-    """MODEL.md §1: every corner within 0 <= y <= P_max and the load not past the fence."""
+    """docs/model.md §1: every corner within 0 <= y <= P_max and the load not past the fence."""
     problem = _start_problem(*(vals[n] for n in _START_NAMES))
     if problem:
         raise ParameterError(problem)
@@ -367,7 +373,8 @@ _START_NAMES = ("R_s", "l", "L", "A", "phi0", "dP", "P_max")
 
 @lru_cache(maxsize=4096)  # a sweep repeats the load's placing in most of its scenes
 def _start_problem(R_s: float, l: float, L: float, A: float, phi0: float, dP: float, P_max: float) -> str | None:
-    """Why the load cannot start there (_check_start's message), or None."""
+    """Why the load cannot start there (_check_start's message), or None: it must start upstream
+    of the tip, R_s < l, and entirely on the belt, max_j y_Gj(0) <= P_max (docs/model.md (1.6))."""
     if R_s >= l:
         return f"R_s = {R_s!r} is not allowed: the load would start past the fence; R_s must be < l = {l!r}"
     xc, yc = initial_centroid(L, A, phi0, R_s, dP)
@@ -383,7 +390,7 @@ def model_key(vals: dict[str, Any]) -> tuple:
     """The values a scene's model actually uses, as a hashable key.
 
     Two resolved parameter sets with the same key give the same results, bit for bit, so a
-    sweep simulates each key once (MODEL.md §8: model only what a scene needs); the engine
+    sweep simulates each key once (docs/model.md §8: model only what a scene needs); the engine
     is the judge (tests/test_model_key.py). Unused parameters: R and w outside `impact`;
     B2, K2 under `drive = rigid` in a cycle (the drive is kinematic; I2 stays, as the error
     control scales the energy integrals by the fence's kinetic energy); B2, K2 under

@@ -27,7 +27,7 @@ _METHOD = {"dopri5": METHOD_DOPRI5, "rk4": METHOD_RK4}
 
 @lru_cache(maxsize=4096)
 def freefall_force(m1: float, k1: float, e: float, law: str, k_lin: float | None, H: float) -> float:
-    """Peak of N when the load falls from H onto an undeformable surface (MODEL.md §7), at the
+    """Peak of N when the load falls from H onto an undeformable surface (docs/model.md §7), at the
     default tolerance whatever a cycle's step_factor (the reference of its overload)."""
     from fencesweep.model.results import N_IMPACT_RESULTS, RJ
 
@@ -43,7 +43,8 @@ def freefall_force(m1: float, k1: float, e: float, law: str, k_lin: float | None
 
 
 def _contact_part(vals: dict) -> np.ndarray:
-    """Parameter vector with the contact-law entries (KC, CD) filled in (MODEL.md §4)."""
+    """Parameter vector with the contact-law entries (KC, CD) filled in: the damping of the law
+    from the restitution, c_d = q sqrt(m1 k1) or b_lin = beta sqrt(m1 k_lin) (docs/model.md (4.4))."""
     p = np.zeros(Lp.N_P)
     law = vals["contact_law"]
     p[Lp.LAW] = _LAW[law]
@@ -73,11 +74,8 @@ def prepare(vals: dict) -> np.ndarray:
     p[Lp.DRIVE] = _DRIVE[vals["drive"]]
     p[Lp.PROFILE] = _PROFILE[vals["profile"]]
     m1, L, A = vals["m1"], vals["L"], vals["A"]
-    p[Lp.I1] = m1 * (L * L + A * A) / 12.0
-    p[Lp.FMAX] = vals["mu1"] * m1 * Lp.G
-    rho_bar = mean_footprint_radius(L, A)
-    p[Lp.MMAX] = p[Lp.FMAX] * rho_bar
-    p[Lp.RHO] = rho_bar
+    p[Lp.I1] = load_inertia(m1, L, A)
+    p[Lp.FMAX], p[Lp.MMAX], p[Lp.RHO] = belt_friction_limits(vals["mu1"], m1, L, A)
     daw = max_drive_rate(float(vals["swing"]), float(vals["t_c"]), vals["profile"], float(vals["coupler_ratio"]))
     p[Lp.DAW_MAX] = daw
     p[Lp.FFORCE] = freefall_force(float(m1), float(vals["k1"]), float(vals["e"]), vals["contact_law"],
@@ -93,26 +91,52 @@ def prepare(vals: dict) -> np.ndarray:
     return p
 
 
+def load_inertia(m1: float, L: float, A: float) -> float:
+    """I1 = m1 (L^2 + A^2) / 12 [kg m^2], the load's moment of inertia about its centroid
+    (docs/model.md (1.2))."""
+    return m1 * (L * L + A * A) / 12.0
+
+
+def belt_friction_limits(mu1: float, m1: float, L: float, A: float) -> tuple[float, float, float]:
+    """(F_max, M_max, rho) of the belt friction (docs/model.md (6.1)) [N, N m, m]: F_max = mu1 m1 g,
+    M_max = F_max rho_bar, rho = M_max / F_max = rho_bar, the mean footprint radius (6.2)."""
+    f_max = mu1 * m1 * Lp.G
+    rho_bar = mean_footprint_radius(L, A)
+    return f_max, f_max * rho_bar, rho_bar
+
+
+def run_tolerance(tol: float, step_factor: float) -> float:
+    """TOL_run = max(tol step_factor^TOL_EXPONENT, TOL_MIN) (docs/model.md (15.1)); tol is
+    numerics.TOL, or IMPACT_TOL for the impact scenes."""
+    return max(tol * step_factor ** NU.TOL_EXPONENT, NU.TOL_MIN)
+
+
+def largest_step(t_c: float, drive: str, K2: float, I2: float) -> float:
+    """h_max = H_MAX_PER_PERIOD min(t_c, 2 pi sqrt(I2 / K2)) [s] (docs/model.md (15.5)): a fraction
+    of the cycle and, for the flexible drive with K2 > 0, of the element's period."""
+    period = float(t_c)
+    if drive == "flexible" and K2 > 0:
+        period = min(period, 2 * math.pi * math.sqrt(I2 / K2))
+    return NU.H_MAX_PER_PERIOD * period
+
+
 def _numerics(p: np.ndarray, vals: dict) -> None:
-    """The integrator's settings (numerics.py): method, tolerance TOL x step_factor^5 (floored
-    at TOL_MIN), the RK4 baseline's step, the largest step and the closed-form ride's slip."""
+    """The integrator's settings (numerics.py): method, tolerance (run_tolerance), the RK4
+    baseline's step, the largest step (largest_step) and the closed-form ride's slip."""
     sf = float(vals["step_factor"])
     p[Lp.METHOD] = _METHOD[vals.get("integrator", "dopri5")]
     dt = vals.get("dt")
     p[Lp.DT] = sf * (NU.DT_RK4 if dt is None else float(dt))
     if "t_c" not in vals or vals.get("scene") in ("impact", "freefall"):  # one pulse
-        p[Lp.TOL] = max(NU.IMPACT_TOL * sf ** NU.TOL_EXPONENT, NU.TOL_MIN)
+        p[Lp.TOL] = run_tolerance(NU.IMPACT_TOL, sf)
         return
-    p[Lp.TOL] = max(NU.TOL * sf ** NU.TOL_EXPONENT, NU.TOL_MIN)
-    period = float(vals["t_c"])
-    if vals["drive"] == "flexible" and vals["K2"] > 0:
-        period = min(period, 2 * math.pi * math.sqrt(vals["I2"] / vals["K2"]))
-    p[Lp.H_MAX] = NU.H_MAX_PER_PERIOD * period
+    p[Lp.TOL] = run_tolerance(NU.TOL, sf)
+    p[Lp.H_MAX] = largest_step(vals["t_c"], vals["drive"], vals["K2"], vals["I2"])
     p[Lp.SNAP] = NU.SNAP_SLIP * float(vals["eps_v"])
 
 
 def load_table(vals: dict) -> np.ndarray:
-    """The kernel's loads table of a stream (MODEL.md §14): one row per cycle, the entries of
+    """The kernel's loads table of a stream (docs/model.md §14): one row per cycle, the entries of
     the parameter vector that belong to that cycle's load (layout.LOAD_SLOTS), each distinct
     load prepared once. Without a list of loads every cycle has the scene's load."""
     from fencesweep.model.params import LOAD_NAMES

@@ -1,8 +1,8 @@
-"""Result names, units and codes (MODEL.md §8, §9, §11): one table, used by the API,
+"""Result names, units and codes (docs/model.md §8, §9, §11): one table, used by the API,
 the CLI and the Parquet store.
 
 Kernels write results into a float64 vector at the indices below; `unpack` turns it into
-a dict under the MODEL.md names. Outcomes and statuses are integer codes with one table
+a dict under the names of docs/model.md. Outcomes and statuses are integer codes with one table
 of messages each.
 """
 from __future__ import annotations
@@ -11,9 +11,9 @@ import math
 
 import numpy as np
 
-# ---- outcome codes (MODEL.md §9) ----
+# ---- outcome codes (docs/model.md §9) ----
 SCRAPED, ESCAPED, TIMEOUT, FAILED, JAMMED = 0, 1, 2, 3, 4
-#: jammed (MODEL.md §14, `stream` only): the next cycle's load arrived with this one still on the belt
+#: jammed (docs/model.md §14, `stream` only): the next cycle's load arrived with this one still on the belt
 OUTCOMES = ("scraped", "escaped", "timeout", "failed", "jammed")
 
 # ---- status codes: 0 ok, the rest name why a run cannot be trusted ----
@@ -27,16 +27,16 @@ STATUS_MESSAGES = (
     "failed: not run, an earlier cycle of the stream failed",
 )
 
-# ---- stages (MODEL.md §10) ----
+# ---- stages (docs/model.md §10) ----
 STAGE_S1, STAGE_S2, STAGE_S3, STAGE_S4, STAGE_RAIL = 0, 1, 2, 3, 4
 
-# ---- result vector layout for the cycle scene (MODEL.md §11), name -> (index, unit, meaning) ----
+# ---- result vector layout for the cycle scene (docs/model.md §11), name -> (index, unit, meaning) ----
 CYCLE_RESULTS = (
     ("outcome", "-", "scraped / escaped / timeout / failed"),
     ("t_exit", "s", "time of the outcome event"),
     ("peak_force", "N", "max over time of the summed load-fence normal forces"),
     ("peak_rail_force", "N", "max over time of the summed rail normal forces"),
-    ("freefall_force", "N", "peak force of the same load dropped from H (MODEL.md §7)"),
+    ("freefall_force", "N", "peak force of the same load dropped from H (docs/model.md §7)"),
     ("overload", "-", "peak_force / freefall_force"),
     ("safe", "-", "overload <= 1"),
     ("deflection_ok", "-", "deflection_max <= dalpha_perm"),
@@ -72,14 +72,14 @@ IMPACT_RESULTS = (
     ("status", "-", "ok, or failed and why"),
 )
 FREEFALL_RESULTS = IMPACT_RESULTS
-#: MODEL.md §14: a stream's cycle k has the results of §11 (times from t_k) and these
+#: docs/model.md §14: a stream's cycle k has the results of §11 (times from t_k) and these
 START_RESULTS = (
     ("start_deflection", "rad", "dalpha(t_k) = alpha - alpha_w at the cycle's start"),
     ("start_rate", "rad/s", "dalpha'(t_k) at the cycle's start"),
     ("start_amplitude", "rad", "sqrt(dalpha(t_k)^2 + (dalpha'(t_k)/omega_n)^2), the residual_amplitude formula at t_k"),
 )
 STREAM_CYCLE_RESULTS = CYCLE_RESULTS + START_RESULTS
-#: MODEL.md §14: the results of the whole stream (results.stream_summary)
+#: docs/model.md §14: the results of the whole stream (results.stream_summary)
 STREAM_RESULTS = (
     ("n_cycles", "-", "number of work cycles"),
     ("n_scraped", "-", "cycles whose outcome is scraped"),
@@ -113,7 +113,7 @@ _BOOL_RESULTS = {"safe", "deflection_ok"}
 
 
 def unpack(scene: str, vec: np.ndarray) -> dict:
-    """Kernel output vector -> dict under the MODEL.md names."""
+    """Kernel output vector -> dict under the names of docs/model.md."""
     rows = SCENE_RESULTS[scene]
     out: dict = {}
     for i, (name, _, _) in enumerate(rows):
@@ -150,7 +150,8 @@ def unpack_cycles(out: np.ndarray) -> dict:
 
 
 def stream_summary(cycles: dict, period: float) -> dict:
-    """The results of a stream (MODEL.md §14, STREAM_RESULTS) from its cycles' ({name: list})."""
+    """The results of a stream (docs/model.md §14, STREAM_RESULTS) from its cycles' ({name: list}):
+    the counts, the first failure, the worst values and the throughput 3600 / T (14.5)."""
     outcomes = cycles["outcome"]
     first = next((k for k, o in enumerate(outcomes) if o != "scraped"), -1)
 

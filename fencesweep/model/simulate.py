@@ -17,14 +17,14 @@ from fencesweep.model.results import N_CYCLE_RESULTS, N_IMPACT_RESULTS, unpack
 
 
 def simulate(scene: str = "cycle", case: str | None = None, **params: Any) -> dict:
-    """Simulate one scene; return the results of MODEL.md §11 (cycle), §8 (impact, freefall)
+    """Simulate one scene; return the results of docs/model.md §11 (cycle), §8 (impact, freefall)
     or §14 (stream).
 
-    Parameters take the names and defaults of MODEL.md §12; `case` ('small_far' or
+    Parameters take the names and defaults of docs/model.md §12; `case` ('small_far' or
     'long_near') is applied first and explicit parameters override it. Bad input raises
     ParameterError (a ValueError) naming the parameter, the value and what is allowed.
 
-    `stream` (MODEL.md §14) also takes n_cycles, period [s] (>= t_c, default t_c) and loads:
+    `stream` (docs/model.md §14) also takes n_cycles, period [s] (>= t_c, default t_c) and loads:
     None (every cycle has the scene's load) or one load per cycle, a pandas DataFrame with
     columns among L, A, m1, dP, R_s, phi0 (or a list of named cases / mappings); what a row
     does not give is the scene's. It returns the stream's results (results.STREAM_RESULTS)
@@ -65,7 +65,7 @@ def simulate_resolved(vals: dict, trajectory: bool = False):
 
 
 def _impact(p: np.ndarray, vals: dict):
-    """An impact or a free fall (MODEL.md §8, §7): (results dict, None)."""
+    """An impact or a free fall (docs/model.md §8, §7): (results dict, None)."""
     from fencesweep.model.scenes.freefall import freefall
     from fencesweep.model.scenes.impact import impact_kernel
 
@@ -118,7 +118,7 @@ def _trajectory_frame(traj: np.ndarray, starts: np.ndarray | None):
 
 
 def _cycle(p: np.ndarray, vals: dict, trajectory: bool):
-    """One work cycle (MODEL.md §8 `cycle`): a stream of one. (results dict, trajectory or None)."""
+    """One work cycle (docs/model.md §8 `cycle`): a stream of one. (results dict, trajectory or None)."""
     from fencesweep.model import layout as Lp
 
     loads = np.ascontiguousarray(p[list(Lp.LOAD_SLOTS)][None, :])
@@ -143,7 +143,7 @@ def check_stream_memory(n_cycles: int) -> None:
 
 
 def _stream(p: np.ndarray, vals: dict, trajectory: bool):
-    """A stream (MODEL.md §14): (results dict with "cycles", trajectory DataFrame or None); the
+    """A stream (docs/model.md §14): (results dict with "cycles", trajectory DataFrame or None); the
     trajectory has the columns of a cycle's plus `cycle`, t from the stream's start."""
     from fencesweep.model.prepare import load_table
     from fencesweep.model.results import stream_results

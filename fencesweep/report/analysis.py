@@ -109,7 +109,7 @@ def read_traj(res: Path, name: str):
 def design_runs(res: Path, residual_max_deg: float = RESIDUAL_MAX_DEG) -> dict:
     """Cycles of the elements read off the design maps (needs the b2k2 table): name -> (case, overrides).
 
-    `<case>_recommended` is Design.best, `<case>_well_damped` Design.damped (MODEL.md names)."""
+    `<case>_recommended` is Design.best, `<case>_well_damped` Design.damped (docs/model.md names)."""
     if not table_path(res, "b2k2").exists():
         return {}
     D = design(read_table(res, "b2k2"), residual_max_deg)
@@ -158,7 +158,7 @@ def make_trajectories(res: Path, names=None, residual_max_deg: float = RESIDUAL_
 # ---------------------------------------------------------------------------- trajectory reading
 @dataclass
 class Events:
-    """MODEL.md §10: A first contact, B last loss of contact, C the stage changes between them."""
+    """docs/model.md §10: A first contact, B last loss of contact, C the stage changes between them."""
 
     A: float
     B: float
@@ -328,7 +328,7 @@ def cell_edges(v: np.ndarray) -> np.ndarray:
     return np.r_[v[0] - (mid[0] - v[0]), mid, v[-1] + (v[-1] - mid[-1])]
 
 
-#: MODEL.md §13.3: the quotient of Fig. 5b this model gives (m2 [kg] -> rigid / free peak force)
+#: docs/model.md §13.3: the quotient of Fig. 5b this model gives (m2 [kg] -> rigid / free peak force)
 MODEL_5B = {5.0: 1.74, 1.0: 2.37, 50.0: 1.20}
 PAPER_5B = 1.7          # the paper's quotient at m2 = 5 kg (§4.1)
 PAPER_FREE_H = 0.1      # [m] the paper: the free fence brings the overload down to a drop from about this height

@@ -64,7 +64,8 @@ def _comparison(res: Path, rec: dict) -> list:
                    f"{'yes' if r['feasible'] else 'no'} | {_load_text(load)} |")
     if "stream_n_cycles" in cmp and cmp["stream_n_cycles"].notna().any():
         n = int(cmp["stream_n_cycles"].dropna().iloc[0])
-        out += ["", f"The same {n} loads back to back, one per work cycle at period t_c (scene `stream`, MODEL.md §14, "
+        out += ["", f"The same {n} loads back to back, one per work cycle at period t_c (scene `stream`, "
+                "docs/model.md §14, "
                 "in the sample's order: what one cycle leaves in the element is what the next starts from). Safe: every "
                 "cycle scraped within the overload and deflection limits (as in section 6); the start amplitude is "
                 "what the residual_amplitude criterion stands for.", "",
@@ -162,7 +163,8 @@ def _swing(res: Path) -> list:
     slope = float(np.polyfit(sf.index, sf.to_numpy(), 1)[0])
     at = lambda s, x: float(np.interp(x, s.index, s.to_numpy()))  # noqa: E731
     limit = float(np.interp(1.0, sf.to_numpy(), sf.index)) if sf.max() > 1 > sf.min() else math.nan
-    return [f"**The swing is calibrated, not measured.** MODEL.md §12 fixes the drive's swing at 42 deg so that the "
+    return [f"**The swing is calibrated, not measured.** docs/model.md §12 fixes the drive's swing at 42 deg "
+            f"so that the "
             f"rigid fence keeps small_far within the permitted overload, as the paper states; the rigid overload of "
             f"small_far is therefore a consequence of that choice: {at(sf, 42):.3f} at 42 deg, and it grows by "
             f"{slope:.4f} per degree ({at(sf, sf.index.min()):.3f} at {sf.index.min():g} deg, {at(sf, 38):.3f} at "
@@ -234,7 +236,7 @@ def _sensitivity(res: Path) -> list:
     conv = {"swing": (math.degrees, " deg"), "k1": (lambda x: x, " N/m^1.5"), "m2": (lambda x: x, " kg")}
     out = [f"Sobol indices (SALib, Saltelli sample n = {meta.get('n')}, seed {meta.get('seed')}: {meta.get('n_points')} "
            f"input sets x {meta.get('n_loads')} loads = {meta.get('cycles')} cycles; `sweeps/sensitivity.yaml`) of the "
-           f"element {elem}'s worst results over the envelope to the inputs MODEL.md §12 had to assume "
+           f"element {elem}'s worst results over the envelope to the inputs docs/model.md §12 had to assume "
            "([`sensitivity.png`](figures/sensitivity.png)). S1: the share of the output's variance due to the input "
            "alone; ST: with its interactions (95 % confidence half-widths after +-).", "",
            "| input | range | " + " | ".join(f"{o} S1 / ST" for o in dict.fromkeys(df["output"])) + " |",

@@ -117,11 +117,12 @@ def _figures_section(I: ReportInputs) -> list[str]:
 
 def _notes_section(I: ReportInputs) -> list[str]:
     return ["## 5. Notes", "",
-            "* The free fence of Fig. 5a is released at the first contact (MODEL.md §3); it is an idealisation for "
+            "* The free fence of Fig. 5a is released at the first contact (docs/model.md §3); it is an "
+            "idealisation for "
             "the impact, and the loads it touches are not all scraped (marked x in Fig. 5a).",
             "* `residual_deflection` is |alpha - alpha_w| at t_c, one snapshot: for a lightly damped element it can "
             "be small by the phase of a swing that has not died out. The maps therefore judge \"home\" by "
-            "`residual_amplitude` (deflection and rate at t_c combined, MODEL.md §11); section 6 answers the "
+            "`residual_amplitude` (deflection and rate at t_c combined, docs/model.md §11); section 6 answers the "
             "question the criterion stands for directly, by running the cycles back to back.", ""]
 
 

@@ -27,7 +27,7 @@ def front_at_contact(df):
 #: why a load escapes (escape_cause), in words
 ESCAPE_CAUSES = {
     "no_contact": "no contact: the load is past the fence before the fence reaches it",
-    "free": "free fence: released at the first contact, nothing drives the load on (MODEL.md §3: an idealisation "
+    "free": "free fence: released at the first contact, nothing drives the load on (docs/model.md §3: an idealisation "
             "of the impact, not a working drive)",
     "tip": "tip on the face: the load's leading corner is already past the fence's tip when the tip rises to the "
            "load's near side, so the tip strikes that face from below and the blow, along the face's normal, "
@@ -119,7 +119,7 @@ def _worst_case_text(I: ReportInputs) -> list[str]:
     two_r = two[two["drive"] == "rigid"]
     L.append(f"Of the worst placements, {int(two['two_points'].sum())} of {len(two)} ({int(two_r['two_points'].sum())} "
              f"of {len(two_r)} for the rigid fence) had two fence contact points at once (S3) during their contact; "
-             "peak_force (MODEL.md §11) adds the forces of all contact points." + _worst_peak_stage(I))
+             "peak_force (docs/model.md §11) adds the forces of all contact points." + _worst_peak_stage(I))
     L.append("")
     return L
 

@@ -21,7 +21,7 @@ STREAM_ELEMENTS = (("paper 72/570", dict(B2=72.0, K2=570.0), "#d62728", "-"),
 
 
 def stream(res: Path, out: Path) -> Path:
-    """Deflection over 10 back-to-back cycles (MODEL.md §14) at T = t_c, alternating loads."""
+    """Deflection over 10 back-to-back cycles (docs/model.md §14) at T = t_c, alternating loads."""
     from fencesweep.model.simulate import simulate_resolved
     from fencesweep.model.params import resolve
 

@@ -125,7 +125,8 @@ def fig4(res: Path, out: Path) -> Path:
     axes[0].set_xlim(0, tc)
     axes[0].set_xlabel("time t [s]")
     fig.suptitle(f"Paper Fig. 4: fence input signals at {WORKING_POINT}, m1 = 15 kg, m2 = 5 kg\n"
-                 "A first contact, B last loss of contact, C stage change (flexible run; stages S1-S4 of MODEL.md §10)")
+                 "A first contact, B last loss of contact, C stage change "
+                 "(flexible run; stages S1-S4 of docs/model.md §10)")
     fig.tight_layout()
     return save(fig, out, "fig4_fence_moment.png")
 
@@ -188,7 +189,7 @@ def fig7(res: Path, out: Path) -> Path:
         ax.set_xlabel("time t [s]")
         ax.grid(alpha=0.3)
     fig.legend(handles=stage_legend_handles(stages), loc="lower center", ncol=len(stages), fontsize=7,
-               title="shaded: stage of the flexible run (MODEL.md §10)", title_fontsize=7,
+               title="shaded: stage of the flexible run (docs/model.md §10)", title_fontsize=7,
                bbox_to_anchor=(0.5, 0.0))
     fig.suptitle(f"Paper Fig. 7: response of the fence, flexible element B2 = 72 N m s/rad, K2 = 570 N m/rad, "
                  f"{WORKING_POINT}\nA first contact, B last loss of contact, C stage change; bars: time in contact "

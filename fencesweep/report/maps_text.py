@@ -21,7 +21,8 @@ def residual_reason(threshold_deg: float, perm_deg: float, l: float, a_min: floa
     tip = l * math.sin(math.radians(threshold_deg))
     return (
         "A cycle starts from the rest position the model assumes (alpha = 0 at t = 0), and the next one's "
-        "deflection adds to whatever swing is left of this one; residual_amplitude (MODEL.md §11) is that swing's "
+        "deflection adds to whatever swing is left of this one; residual_amplitude (docs/model.md §11) "
+        "is that swing's "
         "undamped amplitude, deflection and rate at t_c together (a snapshot of the deflection alone can catch a "
         f"ringing fence at its zero crossing). {threshold_deg:g} deg is {threshold_deg / perm_deg:.1%} of the "
         f"permitted deflection ({perm_deg:g} deg), so the leftover eats at most that share of the next cycle's "
@@ -128,7 +129,8 @@ def _three_elements(I: ReportInputs) -> list[str]:
         L += [f"**What we would build:** the well-damped {D.damped['B2']:g} / {D.damped['K2']:g}. The rule's "
               f"choice {b['B2']:g} / {b['K2']:g} is lower in overload by only "
               f"{(1 - b['worst_overload'] / D.damped['worst_overload']):.1%}, less than the model's own uncertainty "
-              f"(k1 and the friction coefficients are assumed, MODEL.md §12), but rings after the impact: once small_far "
+              f"(k1 and the friction coefficients are assumed, docs/model.md §12), but rings after the impact: "
+              f"once small_far "
               f"has left, its deflection swings between {sr[0]:+.1f} and {sr[1]:+.1f} deg and changes sign {sr[2]} times "
               f"before t_c, against {sd[0]:+.1f} to {sd[1]:+.1f} deg and {sd[2]} sign changes for the well-damped element "
               "(`recommended.png`). Both keep every constraint for both cases.", ""]

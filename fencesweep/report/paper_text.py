@@ -30,7 +30,8 @@ def _peak_at(ff, H):
 # ------------------------------------------------------------------ 1. the paper's results
 def paper_section(I: ReportInputs) -> list[str]:
     rows = (_row_psi, _row_impacts, _row_fig5b, _row_fig5a, _row_fig6, _row_cycles)
-    return (["## 1. The paper's results (MODEL.md §13), ours beside them", "", "| # | paper | ours | difference |",
+    return (["## 1. The paper's results (docs/model.md §13), ours beside them", "",
+             "| # | paper | ours | difference |",
              "|---|---|---|---|"] + [f"| {k} | {row(I)} |" for k, row in enumerate(rows, 1)] + [""])
 
 
@@ -118,7 +119,7 @@ def _row_fig5b(I: ReportInputs) -> str:
     return (f"Fig. 5b: peak force against a rigid fence over that against a free fence of mass m2 (point load at "
             f"R = {I.base['l']:g} m, m1 = {I.base['m1']:g} kg, w = {I.base['v']:g} m/s): ~ {PAPER_5B:g} at m2 = "
             f"{m0:g} kg, growing as m2 falls | {qat(m0):.3f} at {m0:g} kg ({qat(m_lo):.2f} at {m_lo:g} kg, "
-            f"{qat(m_hi):.2f} at {m_hi:g} kg; MODEL.md §13.3 expects "
+            f"{qat(m_hi):.2f} at {m_hi:g} kg; docs/model.md §13.3 expects "
             + ", ".join(f"{MODEL_5B[m]:.2f}" for m in (m0, m_lo, m_hi)) + ")"
             + (f"; the flexible {PAPER_B2:g}/{PAPER_K2:g} fence gives {float(qf.loc[m0]):.3f} at {m0:g} kg, the "
                "element is invisible here: the peak comes before the element's torque has built up"
@@ -262,7 +263,7 @@ def _seq(ev) -> str:
 
 
 def stage_section(I: ReportInputs) -> list[str]:
-    L = [f"Stage sequences (MODEL.md §10; runs shorter than {MIN_STAGE * 1e3:g} ms merged), rigid and flexible "
+    L = [f"Stage sequences (docs/model.md §10; runs shorter than {MIN_STAGE * 1e3:g} ms merged), rigid and flexible "
          f"{PAPER_B2:g}/{PAPER_K2:g} fence:", ""]
     ev = {(c, d): events(I.T[f"{c}_{d}"], MIN_STAGE) for c in CASES for d in ("rigid", "flexible")}
     for (c, d), e in ev.items():
@@ -329,7 +330,7 @@ def differences_section(I: ReportInputs) -> list[str]:
            f"{s1} S1 contact{'s' if s1 != 1 else ''}, because with dP = {ps['dP']:g} m its centroid starts only "
            f"{gap:.2f} m from the edge." if not any(s == 2 for _, _, s in events(I.T['small_far_flexible']).runs)
            else "impact; ours does too (see the stage sequences)."),
-        f"* **Parameters the paper does not give** (MODEL.md §12 fixes them): k1 = {ps['k1']:.1e} N/m^1.5, "
+        f"* **Parameters the paper does not give** (docs/model.md §12 fixes them): k1 = {ps['k1']:.1e} N/m^1.5, "
         f"mu1 = {ps['mu1']:g}, mu2 = {ps['mu2']:g}, the drive swing {math.degrees(ps['swing']):.3g} deg, dalpha_perm = "
         f"{math.degrees(ps['dalpha_perm']):.3g} deg. The absolute forces and overloads depend on k1 and the swing; the "
         "ratios (Fig. 5b) do not depend on k1.", ""]

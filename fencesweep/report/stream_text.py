@@ -1,4 +1,4 @@
-"""REPORT.md section 6: consecutive cycles (scene stream, MODEL.md §14, sweeps/period.yaml): which
+"""REPORT.md section 6: consecutive cycles (scene stream, docs/model.md §14, sweeps/period.yaml): which
 streams are safe, the shortest safe period of each element (shortest_safe_period), and what the
 table says in sentences built from its numbers.
 """
@@ -52,7 +52,7 @@ def stream_section(df) -> list[str]:
     """Section 6 of the report: consecutive cycles (scene stream, sweeps/period.yaml)."""
     S = stream_safety(df)
     n = int(S["n_cycles"].iloc[0])
-    L = ["## 6. Consecutive cycles: how short may the period be? (scene `stream`, MODEL.md §14)", "",
+    L = ["## 6. Consecutive cycles: how short may the period be? (scene `stream`, docs/model.md §14)", "",
          f"Table `period.parquet` (`sweeps/period.yaml`): streams of {n} work cycles, small_far and long_near "
          "alternating, each cycle starting with the fence's state that the one before left (nothing is reset), "
          "the drive resting between cycles; the period T from t_c to 2 t_c in steps of "

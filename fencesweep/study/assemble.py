@@ -43,7 +43,7 @@ def _block_params(plan: PL.Plan, work: Path, block: int, rows: np.ndarray):
 
 def _table_rows(scene: str, cols: dict, n_params: int) -> dict:
     """A block's columns, one entry per scene, as the table's rows: for `stream` one per cycle
-    (MODEL.md §14, store.explode_streams), for the other scenes the same."""
+    (docs/model.md §14, store.explode_streams), for the other scenes the same."""
     return store.explode_streams(cols, n_params) if scene == "stream" else cols
 
 

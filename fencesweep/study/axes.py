@@ -1,6 +1,6 @@
 """The values a sweep spec gives (sweeps/README.md): one input checked, one axis expanded.
 
-An input is a parameter of MODEL.md §12 or a derived one (Psi, relative damping); check_input
+An input is a parameter of docs/model.md §12 or a derived one (Psi, relative damping); check_input
 checks one value and returns it normalised. An axis is a list of values or a generated range,
 `{linspace: [start, stop, num]}`, `{logspace: [start, stop, num]}` (geometric, both > 0) or
 `{range: [start, stop, step]}` (stop included); generated values are rounded to 12 significant
@@ -21,7 +21,7 @@ import numpy as np
 
 from fencesweep.model import params as P
 
-#: derived inputs: name -> (unit, meaning). Psi fixes K2 from B2 and I2 (MODEL.md §3).
+#: derived inputs: name -> (unit, meaning). Psi fixes K2 from B2 and I2 (docs/model.md §3).
 DERIVED_INPUTS = {"Psi": ("-", "relative damping B2 / (2 sqrt(K2 I2)); fixes K2 = (B2 / (2 Psi))^2 / I2")}
 INPUT_NAMES = P.NAMES + tuple(DERIVED_INPUTS)
 
@@ -50,7 +50,7 @@ def round_value(x: float) -> float:
 def _known(name: str, where: str) -> None:
     if name not in INPUT_NAMES:
         raise SpecError(f"{where}: unknown parameter {name!r}{did_you_mean(name, INPUT_NAMES)} "
-                        f"(parameters of MODEL.md §12: {', '.join(P.NAMES)}; derived: "
+                        f"(parameters of docs/model.md §12: {', '.join(P.NAMES)}; derived: "
                         f"{', '.join(DERIVED_INPUTS)})")
 
 

@@ -62,7 +62,7 @@ def evaluate(spec, point: dict, loads: list, simulate: Callable | None = None):
 
 
 def stream_check(spec, point: dict, loads: list, limits: E.Limits) -> dict | None:
-    """The loads back to back (scene stream, MODEL.md §14) at period t_c, in the order given:
+    """The loads back to back (scene stream, docs/model.md §14) at period t_c, in the order given:
     what one cycle leaves in the element is what the next starts from. `safe`: every cycle
     scraped, worst overload and deflection within the limits. None when the envelope
     varies more than the load's parameters, or the element cannot run a stream (drive free)."""

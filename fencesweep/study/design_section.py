@@ -92,7 +92,8 @@ def _variables(raw: Any, spec) -> dict:
     for name, rng in raw.items():
         where = f"design.variables.{name}"
         if name not in P.NAMES or P.BY_NAME[name].kind == "choice":
-            raise DesignError(f"{where}: {name!r} is not a numeric parameter of MODEL.md §12 (e.g. B2, K2, m2, t_c)")
+            raise DesignError(f"{where}: {name!r} is not a numeric parameter of docs/model.md §12 "
+                              f"(e.g. B2, K2, m2, t_c)")
         if name in spec.envelope.names:
             raise DesignError(f"{where}: {name} is a dimension of the envelope; a design variable is what the "
                               f"designer chooses, a load parameter is not")

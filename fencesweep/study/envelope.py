@@ -1,6 +1,6 @@
 """Load envelopes: every package a sorter may see, as one axis of a sweep (issue 10).
 
-A spec's `envelope:` section gives, for parameters of MODEL.md §12 (normally the load's L, A,
+A spec's `envelope:` section gives, for parameters of docs/model.md §12 (normally the load's L, A,
 m1, dP, R_s, phi0), a range {min, max}, a list of choices or one value, and `dP: across` for
 "anywhere across the belt" (dP from 0 to P_max minus the load's extent across the belt). The
 loads are the corners of that box (every combination of each range's ends and of the choices)
@@ -83,7 +83,7 @@ def _dim(name: str, raw: Any, where: str) -> tuple:
     allowed = ("{min: a, max: b} (a range), a list of values (choices), one value, or 'across' "
                "(dP only: anywhere across the belt)")
     if name not in P.NAMES:
-        raise EnvelopeError(f"{where}: unknown parameter {name!r} (parameters of MODEL.md §12: "
+        raise EnvelopeError(f"{where}: unknown parameter {name!r} (parameters of docs/model.md §12: "
                             f"{', '.join(P.NAMES)}; sampling keys: {', '.join(SAMPLE_KEYS)})")
     if raw == ACROSS:
         if name != "dP":
@@ -156,7 +156,7 @@ def parse(raw: Any, base: dict, taken: dict) -> Envelope:
 
 # ------------------------------------------------------------------------------ sampling
 def _extent(L: float, A: float, phi0: float) -> float:
-    """The load's extent across the belt at phi0 (MODEL.md §1: lowest corner at y = dP)."""
+    """The load's extent across the belt at phi0 (docs/model.md §1: lowest corner at y = dP)."""
     ys = [y for _, y in P.load_corners(L, A, phi0)]
     return max(ys) - min(ys)
 
@@ -217,7 +217,7 @@ def loads_of(env: Envelope, base: dict, n: int, seed: int, corners: bool) -> lis
 def valid_loads(env: Envelope, base: dict, n: int, seed: int, corners: bool) -> tuple:
     """(loads, skipped) of a sample of the envelope: loads as tuples in the order of env.names,
     duplicates dropped; skipped = (load, reason) for each load that cannot start on the belt
-    (MODEL.md §1), as base["check"] (spec.load_base) judges it."""
+    (docs/model.md §1), as base["check"] (spec.load_base) judges it."""
     loads, skipped, seen = [], [], set()
     for load in loads_of(env, base["defaults"], n, seed, corners):
         key = tuple(load[n_] for n_ in env.names)

@@ -3,7 +3,7 @@
 Every scene of the spec is resolved (params.resolve) once, up front, so any bad combination is
 reported before work starts, and mapped to its model run by params.model_key: scenes that
 differ only in parameters their model does not use (B2, K2 under a rigid drive, ...) share one
-run (MODEL.md §8). The runs are numbered in order of first appearance and cut into chunks of
+run (docs/model.md §8). The runs are numbered in order of first appearance and cut into chunks of
 `chunk_size` runs; a chunk's file name carries a digest of the spec hash, the package's source
 hash, its chunk size and the model keys of its runs (Plan.chunk_name), so a changed spec or
 engine never reuses a stale chunk. The same pass can write the table's parameter columns,

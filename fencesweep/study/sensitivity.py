@@ -39,7 +39,7 @@ def _bounds(inputs: Any, spec) -> dict:
 def _range(name: str, rng: Any, spec) -> tuple:
     where = f"sensitivity.inputs.{name}"
     if name not in P.NAMES or P.BY_NAME[name].kind == "choice":
-        raise SensitivityError(f"{where}: {name!r} is not a numeric parameter of MODEL.md §12")
+        raise SensitivityError(f"{where}: {name!r} is not a numeric parameter of docs/model.md §12")
     if name in spec.params or name in spec.envelope.names:
         raise SensitivityError(f"{where}: {name} is also fixed in params or the envelope; remove one of them")
     if not isinstance(rng, dict) or set(rng) != {"min", "max"}:

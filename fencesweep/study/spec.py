@@ -10,7 +10,7 @@ a whole spec from YAML).
 
 Everything wrong in a spec raises `SpecError` (a params.ParameterError) naming the key,
 the value and what is allowed. Values are checked one by one when the spec is read;
-combinations (an invalid start, MODEL.md §1) when every scene is resolved, before any
+combinations (an invalid start, docs/model.md §1) when every scene is resolved, before any
 run (see plan.make_plan).
 """
 from __future__ import annotations
@@ -131,7 +131,7 @@ class Spec:
 
 
 def resolve_inputs(scene: str, case: str | None, over: dict, loads: list | None = None) -> dict:
-    """params.resolve, plus the derived input Psi (MODEL.md §3): K2 = (B2 / (2 Psi))^2 / I2."""
+    """params.resolve, plus the derived input Psi (docs/model.md §3): K2 = (B2 / (2 Psi))^2 / I2."""
     if loads is not None:
         over = dict(over, loads=loads)
     if "Psi" not in over:
@@ -141,7 +141,7 @@ def resolve_inputs(scene: str, case: str | None, over: dict, loads: list | None 
     if "K2" in over:  # caught when the spec is read; kept for direct callers
         raise SpecError(f"K2 = {over['K2']!r} and Psi = {psi!r} are both set: Psi fixes K2; set one of them")
     base = P.resolve(scene, case, **over)
-    K2 = round_value((base["B2"] / (2.0 * psi)) ** 2 / base["I2"])  # Psi = B2 / (2 sqrt(K2 I2)), MODEL.md §3
+    K2 = round_value((base["B2"] / (2.0 * psi)) ** 2 / base["I2"])  # Psi = B2 / (2 sqrt(K2 I2)), docs/model.md §3
     try:
         return P.resolve(scene, case, **over, K2=K2)
     except P.ParameterError as exc:
@@ -365,7 +365,7 @@ def load_base(scene: str, case: str | None, base: dict, cases: list) -> dict:
 
 
 def _loads(raw: Any, scene: str) -> list | None:
-    """The spec's `loads` (scene stream, MODEL.md §14): a list, one load per cycle, each a named
+    """The spec's `loads` (scene stream, docs/model.md §14): a list, one load per cycle, each a named
     case or a mapping of the load's parameters; checked entry by entry here, against each
     scene's parameters when the scenes are resolved."""
     if raw is None:

@@ -1,8 +1,8 @@
 """Parquet out and in: sweep tables with their provenance, resumable chunks, trajectories.
 
 A sweep table is one Parquet file, one row per scene: `scene`, `case`, every parameter of
-MODEL.md §12 (step_factor included), the derived input `Psi`, then every result of the
-scene (MODEL.md §11 for `cycle`, §8 for `impact` and `freefall`) under its MODEL.md name.
+docs/model.md §12 (step_factor included), the derived input `Psi`, then every result of the
+scene (docs/model.md §11 for `cycle`, §8 for `impact` and `freefall`) under its name there.
 Each column carries `unit`, `doc` and `role` (label / parameter / result) in its field
 metadata; the schema metadata records how the file was made (`fencesweep.spec`, its
 `fencesweep.spec_hash`, `fencesweep.versions`, ...; every value JSON-encoded). Nothing in it depends on the number of
@@ -33,9 +33,9 @@ from fencesweep.model import results as R
 COMPRESSION = "zstd"
 META_PREFIX = "fencesweep."
 #: label columns before the parameters
-LABELS = (("scene", "-", "scene: cycle / impact / freefall (MODEL.md §8)"),
-          ("case", "-", "named case of MODEL.md §12 the scene starts from (null: none)"))
-DERIVED = (("Psi", "-", "relative damping B2 / (2 sqrt(K2 I2)) (MODEL.md §3; NaN when K2 I2 = 0)"),)
+LABELS = (("scene", "-", "scene: cycle / impact / freefall (docs/model.md §8)"),
+          ("case", "-", "named case of docs/model.md §12 the scene starts from (null: none)"))
+DERIVED = (("Psi", "-", "relative damping B2 / (2 sqrt(K2 I2)) (docs/model.md §3; NaN when K2 I2 = 0)"),)
 
 _INT = getattr(R, "_INT_RESULTS", {"n_impacts", "n_steps"})
 _BOOL = getattr(R, "_BOOL_RESULTS", {"safe", "deflection_ok"})
@@ -167,7 +167,7 @@ def result_type(name: str) -> pa.DataType:
     return pa.float64()
 
 
-#: a stream sweep's row is one cycle of one stream (MODEL.md §14): its index, then the cycle's
+#: a stream sweep's row is one cycle of one stream (docs/model.md §14): its index, then the cycle's
 #: results, then the results of its stream (n_cycles is a parameter column already)
 CYCLE_INDEX = ("cycle", "-", "index k of the work cycle in its stream (stream scene; it starts at t_k = k period)")
 STREAM_LEVEL = tuple(r for r in R.STREAM_RESULTS if r[0] != "n_cycles")
@@ -259,7 +259,7 @@ def failed_result(scene: str, reason: str) -> dict:
 def explode_streams(cols: dict, n_params: int) -> dict:
     """A block of stream runs ({column: values}, one entry per scene: its parameter columns
     first, then the chunk's result columns) -> one entry per cycle: parameters and stream
-    results repeated, the cycle index and the cycle's results laid out (MODEL.md §14)."""
+    results repeated, the cycle index and the cycle's results laid out (docs/model.md §14)."""
     names = list(cols)
     cycle_cols = {n for n, _, _ in R.STREAM_CYCLE_RESULTS}
     counts = np.array([len(v) for v in cols["outcome"]], dtype=np.int64)

@@ -5,7 +5,7 @@ run_sweep orchestrates the steps, each in its own module:
 1. plan.py: every scene of the spec is resolved (params.resolve) once, up front, so any bad
    combination is reported before work starts, and mapped to its model run by
    params.model_key: scenes that differ only in parameters their model does not use
-   (B2, K2 under a rigid drive, ...) share one run (MODEL.md §8). The same pass
+   (B2, K2 under a rigid drive, ...) share one run (docs/model.md §8). The same pass
    writes the parameter columns of the table, block by block, into the work directory.
 2. runs.py: the distinct runs, numbered in order of first appearance, are cut into chunks of
    `chunk_size` runs: the spec's, or sized from a short timed sample to take about

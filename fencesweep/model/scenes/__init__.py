@@ -1,1 +1,1 @@
-"""One file per scene (MODEL.md §8): cycle, impact, freefall."""
+"""One file per scene (docs/model.md §8): cycle, impact, freefall."""

@@ -1,10 +1,10 @@
-"""The contacts of the load (MODEL.md §5): one small compiled function per kind for its
+"""The contacts of the load (docs/model.md §5): one small compiled function per kind for its
 geometry (penetration D, its rate, the gap and the gap's rate when apart) and one for its
 forces (on the load, the moment on the fence, N and the dissipated powers of §11).
 
 Contact slots of the cycle: corner-fence j -> j (0-3), corner-rail j -> 4 + j, tip-edge -> 8.
 A slot is APART (no penetration or out of its span), PUSH (penetrating, N > 0: it carries
-force) or CLIPPED (penetrating with the Kelvin force <= 0: N = 0, MODEL.md §4).
+force) or CLIPPED (penetrating with the Kelvin force <= 0: N = 0, docs/model.md §4).
 """
 from __future__ import annotations
 
@@ -40,7 +40,22 @@ def next_code(cur, D, Dd, in_span, kc, cd, law, d_gap, d_force):
     return PUSH if n > d_force else CLIPPED
 
 
-# ---------------- corner-fence (MODEL.md §5.1) ----------------
+@kernel(inline=True)
+def damping_power(n, n_el, Dd):
+    """The power one contact dissipates, (N - N_el) D' [W] (docs/model.md (11.7)): its damping
+    while pushing; -N_el D' while CLIPPED (N = 0). add_contact sums it over the contacts, and
+    the state's component 9 integrates it to contact_energy."""
+    return (n - n_el) * Dd
+
+
+@kernel(inline=True)
+def friction_power(f, w):
+    """The heat of one contact's friction, -f w [W], f its friction force, w its slip
+    (docs/model.md (11.11), E_friction; summed by add_contact, integrated as the state's 12)."""
+    return -f * w
+
+
+# ---------------- corner-fence (docs/model.md §5.1) ----------------
 
 @kernel(inline=True)
 def corner_fence_geometry(gx, gy, gvx, gvy, ca, sa, dal, sg):
@@ -62,10 +77,10 @@ def corner_fence_force(rx, ry, gvx, gvy, s, D, Dd, sg, ca, sa, kc, cd, law, mu2,
     f = coulomb(n, wsl, mu2, eps)
     cfx = -sg * n * sa + f * ca
     cfy = sg * n * ca + f * sa
-    return cfx, cfy, rx * cfy - ry * cfx, -sg * n * s, n, (n - n_el) * Dd, -f * wsl
+    return cfx, cfy, rx * cfy - ry * cfx, -sg * n * s, n, damping_power(n, n_el, Dd), friction_power(f, wsl)
 
 
-# ---------------- corner-rail (MODEL.md §5.3) ----------------
+# ---------------- corner-rail (docs/model.md §5.3) ----------------
 
 @kernel(inline=True)
 def corner_rail_force(rx, ry, gvx, gvy, gy, kc, cd, law, mu2, eps, push):
@@ -76,10 +91,16 @@ def corner_rail_force(rx, ry, gvx, gvy, gy, kc, cd, law, mu2, eps, push):
     n, n_el = kelvin_force(D, Dd, kc, cd, law)
     n = max(n, 0.0) if push else 0.0
     f = coulomb(n, gvx, mu2, eps)
-    return f, n, rx * n - ry * f, n, (n - n_el) * Dd, -f * gvx
+    return f, n, rx * n - ry * f, n, damping_power(n, n_el, Dd), friction_power(f, gvx)
 
 
-# ---------------- tip-edge (MODEL.md §5.2) ----------------
+# ---------------- tip-edge (docs/model.md §5.2) ----------------
+
+@kernel(inline=True)
+def tip_position(fl, ca, sa):
+    """The fence tip T = l d [m] (docs/model.md (5.5)), d = (cos alpha, sin alpha) = (ca, sa)."""
+    return fl * ca, fl * sa
+
 
 @kernel(inline=True)
 def tip_local(tx, ty, x, yy, cphi, sphi):
@@ -133,7 +154,8 @@ def tip_edge_force(D, nex, ney, tx, ty, dx, dyy, vx, vy, om, dal, kc, cd, law, m
     f = coulomb(n, wl, mu2, eps)
     cfx = -n * nex + f * tex
     cfy = -n * ney + f * tey
-    return cfx, cfy, dx * cfy - dyy * cfx, ty * cfx - tx * cfy, n, (n - n_el) * Dd, -f * wl, Dd
+    return (cfx, cfy, dx * cfy - dyy * cfx, ty * cfx - tx * cfy, n, damping_power(n, n_el, Dd), friction_power(f, wl),
+            Dd)
 
 
 @kernel(inline=True)

@@ -1,4 +1,4 @@
-"""Scene `impact` (paper §4.1, MODEL.md §8): a material point m1 hits the fence's point at
+"""Scene `impact` (paper §4.1, docs/model.md §8): a material point m1 hits the fence's point at
 distance R from the pivot with normal speed w.
 
 The fence is rigid (I2 = inf), flexible (Kelvin element B2, K2 to a drive at rest) or free
@@ -38,7 +38,8 @@ Work = namedtuple("Work", ("y", "y1", "tmp", "dy", "K", "Q", "aux", "iw", "atol"
 
 @kernel(inline=True)
 def penetration(y, p, rigid):
-    """D and D' of the point against the fence point R theta (module docstring)."""
+    """D and D' of the point against the fence point R theta (module docstring; docs/model.md
+    (8.2))."""
     if rigid:
         return y[0], y[1]
     return y[0] - p[Lp.R] * y[2], y[1] - p[Lp.R] * y[3]
@@ -55,8 +56,9 @@ def fence_rotation(N, theta, dtheta, p, free):
 
 @kernel()
 def impact_rhs(t, y, p, iw, dy, aux):
-    """Right-hand side while the point is in contact; aux[0] = the Kelvin force N (MODEL.md §4;
-    the run ends where it returns to 0, so it is not clipped here)."""
+    """Right-hand side while the point is in contact (docs/model.md (8.3)), with the impulse's
+    integrand N; aux[0] = the Kelvin force N (docs/model.md §4; the run ends where it returns to
+    0, so it is not clipped here)."""
     rigid = iw[IW_RIGID] != 0
     D, Dd = penetration(y, p, rigid)
     N = kelvin_force(max(D, 0.0), Dd, p[Lp.KC], p[Lp.CD], p[Lp.LAW])[0]
@@ -147,7 +149,9 @@ def error_scales(p, w, speed, tp):
 
 @kernel()
 def write_results(w, t, speed, out):
-    """IMPACT_RESULTS into out (NaN where the run failed before the release)."""
+    """IMPACT_RESULTS into out (NaN where the run failed before the release): the peak force,
+    the impulse J (the state's integral of N), e_eff = -D'(t_e) / w and contact_time = t_e
+    (docs/model.md (8.4))."""
     for i in range(Rs.N_IMPACT_RESULTS):
         out[i] = math.nan
     if w.acc[R_STATUS] == Rs.ST_OK:
@@ -160,6 +164,13 @@ def write_results(w, t, speed, out):
     out[Rs.RJ_STATUS] = w.acc[R_STATUS]
 
 
+@kernel(inline=True)
+def effective_mass(p, rigid):
+    """The mass of the impact's time scale [kg] (docs/model.md (15.11)): m1 against a rigid
+    fence, (1/m1 + R^2/I2)^-1 against a flexible or free one."""
+    return p[Lp.M1] if rigid else 1.0 / (1.0 / p[Lp.M1] + p[Lp.R] ** 2 / p[Lp.I2])
+
+
 @entry()
 def impact_kernel(p, rigid, free, speed, out):
     """Integrate one impact from D = 0, D' = speed until N first returns to 0 (kernel/driver.py
@@ -168,8 +179,7 @@ def impact_kernel(p, rigid, free, speed, out):
     w = Work(np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros((rk.N_STAGES, n)), np.zeros((4, n)),
              np.zeros(1), np.array([1 if rigid else 0, 1 if free else 0]), np.empty(n), np.zeros(driver.N_COUNT),
              np.zeros(N_R))
-    m = p[Lp.M1] if rigid else 1.0 / (1.0 / p[Lp.M1] + p[Lp.R] ** 2 / p[Lp.I2])
-    tp = pulse_time(p[Lp.LAW], m, p[Lp.KC], speed)
+    tp = pulse_time(p[Lp.LAW], effective_mass(p, rigid), p[Lp.KC], speed)
     error_scales(p, w, speed, tp)
     w.acc[R_TP] = tp
     w.acc[R_STATUS] = Rs.ST_MAXSTEPS

@@ -1,4 +1,4 @@
-"""The load's geometry (MODEL.md §1): corners, the initial state, the outcome margins (§9)."""
+"""The load's geometry (docs/model.md §1): corners, the initial state, the outcome margins (§9)."""
 from __future__ import annotations
 
 import math

@@ -1,4 +1,4 @@
-"""Scene `stream` (MODEL.md §14): work cycles back to back, one load each, the fence's
+"""Scene `stream` (docs/model.md §14): work cycles back to back, one load each, the fence's
 (alpha, alpha') carried from one cycle into the next; and the one entry point of both `cycle`
 and `stream` (a cycle is a stream of one: `run_cycles` with one load).
 
@@ -34,7 +34,7 @@ from fencesweep.model.scenes.cycle.books import apply_contact_change, drop_load,
 from fencesweep.model.scenes.cycle.layout import (A_EXITED, A_QMAX, A_STATUS, A_T_EXIT, IW_EDGE, IW_MODE, IW_RIDE,
                                                   N_ACC, N_AUX, N_IW, N_Q, N_QV, N_STATE, QV_0, Work)
 from fencesweep.model.scenes.cycle.peaks import quantities_from_aux
-from fencesweep.model.scenes.cycle.rhs import fence_state, rhs, step
+from fencesweep.model.scenes.cycle.rhs import deflection, fence_state, rhs, step
 from fencesweep.model.scenes.cycle.run import run
 from fencesweep.model.scenes.cycle.slots import classify, in_contact
 
@@ -42,7 +42,8 @@ from fencesweep.model.scenes.cycle.slots import classify, in_contact
 @kernel()
 def cycle_params(p, load, period, last, pk):
     """pk: the parameters of one cycle of a stream, the scene's p with this cycle's load; every
-    cycle but the last ends at the next one's start T at the latest (MODEL.md §14)."""
+    cycle but the last ends at the next one's start T at the latest: its window closes at
+    min(t_max, T) (docs/model.md (14.2))."""
     for i in range(Lp.N_LOAD):
         pk[Lp.LOAD_SLOTS[i]] = load[i]
     pk[Lp.TMAX] = p[Lp.TMAX] if last else min(p[Lp.TMAX], period)
@@ -50,9 +51,9 @@ def cycle_params(p, load, period, last, pk):
 
 @kernel()
 def begin_cycle(p, w):
-    """A new load at tau = 0 (MODEL.md §1) with the fence's (alpha, alpha') that w.y holds
-    (0, 0 for the first cycle): the contacts it starts in, f(0, y), the tracked quantities'
-    first values and the first trajectory row."""
+    """A new load at tau = 0 (docs/model.md §1) with the fence's (alpha, alpha') that w.y holds
+    (0, 0 for the first cycle; carried over, docs/model.md (14.3): books.start): the contacts it
+    starts in, f(0, y), the tracked quantities' first values and the first trajectory row."""
     start(p, w)
     w.iw[IW_EDGE] = classify(0.0, w.y, p, w.iw, w.codes1, w.g0, w.r0, w.tags1)
     apply_contact_change(0.0, w.y, p, w.iw, w.codes1, w.iw[IW_EDGE], w.acc)
@@ -68,16 +69,17 @@ def begin_cycle(p, w):
 
 @kernel()
 def start_results(p, w, o):
-    """MODEL.md §14: start_deflection dalpha(t_k), start_rate dalpha'(t_k), start_amplitude."""
+    """docs/model.md (14.4): start_deflection dalpha(t_k), start_rate dalpha'(t_k), start_amplitude."""
     al, dal, aw, daw = fence_state(0.0, w.y, p, w.iw[IW_MODE])
-    o[Rs.RC_START_DEFLECTION] = al - aw
-    o[Rs.RC_START_RATE] = dal - daw
-    o[Rs.RC_START_AMPLITUDE] = swing_amplitude(al - aw, dal - daw, p, w.iw[IW_MODE])
+    dev, rate = deflection(al, dal, aw, daw)
+    o[Rs.RC_START_DEFLECTION] = dev
+    o[Rs.RC_START_RATE] = rate
+    o[Rs.RC_START_AMPLITUDE] = swing_amplitude(dev, rate, p, w.iw[IW_MODE])
 
 
 @kernel()
 def end_cycle(p, w, jam, o):
-    """A load still on the belt when the window closed at T leaves as `jammed` (MODEL.md §14);
+    """A load still on the belt when the window closed at T leaves as `jammed` (docs/model.md §14);
     then the results of §11 into o."""
     if jam and w.acc[A_EXITED] == 0.0 and w.acc[A_STATUS] == Rs.ST_OK:
         drop_load(p[Lp.TMAX], w.y, w.iw, w.acc, Rs.JAMMED)
@@ -101,7 +103,7 @@ rest_loop = driver.integrator(step, rest_accept, "cycle_rest_loop")
 @kernel()
 def rest(p, w, t, t_end, o):
     """The fence alone (no load; the drive at rest after t_c) from t to t_end, stepped under
-    the cycle's error control (MODEL.md §8: only the fence's linear ODE remains). Its steps are
+    the cycle's error control (docs/model.md §8: only the fence's linear ODE remains). Its steps are
     added to the cycle's n_steps and n_rejected; a rest that cannot be stepped fails the cycle."""
     method = int(p[Lp.METHOD])
     ctl = (method, p[Lp.TOL], p[Lp.H_MAX], p[Lp.DT], NU.H_MIN)
@@ -120,8 +122,11 @@ def rest(p, w, t, t_end, o):
 
 
 @kernel()
-def shift_times(traj, first, stop, t_k):
-    """Trajectory rows first .. stop - 1 (those that fit) from the cycle's time to the stream's."""
+def shift_times(traj, first, stop, k, period):
+    """Trajectory rows first .. stop - 1 (those that fit) of cycle k from the cycle's time tau to
+    the stream's t = t_k + tau, t_k = k T (docs/model.md (14.1)); every kernel of the cycle runs
+    on tau."""
+    t_k = k * period
     for r in range(first, min(stop, traj.shape[0])):
         traj[r, 0] += t_k
 
@@ -152,13 +157,13 @@ def cycle_in_stream(p, w, loads, period, k, out, row_starts):
     ok = w.acc[A_STATUS] == Rs.ST_OK
     if ok and not last:
         ok = rest(pk, w, max(pk[Lp.TC], w.acc[A_T_EXIT]), period, out[k])
-    shift_times(w.traj, row_starts[k], w.row[0], k * period)
+    shift_times(w.traj, row_starts[k], w.row[0], k, period)
     return ok
 
 
 @entry()
 def run_cycles(p, loads, period, out, traj, row_starts):
-    """Simulate len(loads) work cycles starting every `period` [s] (MODEL.md §14; one cycle:
+    """Simulate len(loads) work cycles starting every `period` [s] (docs/model.md §14; one cycle:
     the scene `cycle`), load k's parameters in loads[k] (layout.LOAD_SLOTS); write row k of out
     (STREAM_CYCLE_RESULTS) and the time series into traj (rows of TRAJ_COLUMNS, as many as
     fit), the first row of cycle k into row_starts[k] (row_starts[n]: the count). Returns the

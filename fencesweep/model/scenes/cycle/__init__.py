@@ -1,4 +1,4 @@
-"""Scene `cycle`: one sorting work cycle (MODEL.md §1-§6, §9-§11), in the order a step meets it:
+"""Scene `cycle`: one sorting work cycle (docs/model.md §1-§6, §9-§11), in the order a step meets it:
 
   layout.py   the state, the work arrays (`Work`) and the index constants of both;
   rhs.py      the right-hand side: the fence (§3), the load's contacts (§5) and belt (§6);

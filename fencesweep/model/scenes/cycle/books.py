@@ -1,5 +1,5 @@
-"""The cycle's book-keeping: its start (MODEL.md §1), the contact changes it counts (§10-§11), the
-load's exit (§9), the results read at t_c and at the end (§11), the trajectory's rows."""
+"""The cycle's book-keeping: its start (docs/model.md §1), the contact changes it counts (§10-§11),
+the load's exit (§9), the results read at t_c and at the end (§11), the trajectory's rows."""
 from __future__ import annotations
 
 import math
@@ -16,7 +16,7 @@ from fencesweep.model.scenes.cycle.layout import (A_DMAX, A_E_CONTACT, A_E_DAMPE
                                                   AX_TAU, FM_FREE, FM_KELVIN, FM_KINEMATIC, IW_CODE, IW_EDGE,
                                                   IW_LOAD, IW_MODE, IW_RIDE, N_ACC, N_CTRL, N_STATE, Q_ALPHA,
                                                   Q_DEFL, Q_NF, Q_NR)
-from fencesweep.model.scenes.cycle.rhs import fence_state
+from fencesweep.model.scenes.cycle.rhs import deflection, fence_state
 from fencesweep.model.scenes.cycle.slots import fence_pushed, in_contact, stage_of, take_sides
 from fencesweep.model.scenes.load import initial_state
 
@@ -42,10 +42,23 @@ def record(traj, row, t, y, p, iw, aux):
     return row + 1
 
 
+@kernel(inline=True)
+def release_free_fence(t, y, p, iw):
+    """The free drive (docs/model.md (3.4)) at t_A, the first load-fence contact that carries
+    force: the fence, kinematic until then, starts from the drive's alpha_w(t_A), alpha_w'(t_A)
+    and moves without the element from then on (rhs.fence_rhs: I2 alpha'' = tau)."""
+    if iw[IW_MODE] == FM_KINEMATIC and p[Lp.DRIVE] == Lp.DRIVE_FREE:
+        aw, daw = drive_angle(t, p)
+        iw[IW_MODE] = FM_FREE
+        y[6] = aw
+        y[7] = daw
+
+
 @kernel()
 def apply_contact_change(t, y, p, iw, codes, edge, acc):
-    """Enter the slots' new codes at an event; count onsets and losses of load-fence contact
-    (MODEL.md §10-§11); release the free fence at the first contact (§3)."""
+    """Enter the slots' new codes at an event; count the onsets of load-fence contact, n_impacts
+    (docs/model.md (11.9)), and note t_A and the last loss (11.8); release the free fence at the
+    first contact (3.4)."""
     before = fence_pushed(iw)
     for k in range(N_SLOTS):
         iw[IW_CODE + k] = codes[k]
@@ -56,11 +69,7 @@ def apply_contact_change(t, y, p, iw, codes, edge, acc):
         acc[A_N_IMPACTS] += 1.0
         if math.isnan(acc[A_T_FIRST]):
             acc[A_T_FIRST] = t
-        if iw[IW_MODE] == FM_KINEMATIC and p[Lp.DRIVE] == Lp.DRIVE_FREE:
-            aw, daw = drive_angle(t, p)
-            iw[IW_MODE] = FM_FREE
-            y[6] = aw
-            y[7] = daw
+        release_free_fence(t, y, p, iw)
     if before and not after:
         acc[A_T_LOSS] = t
 
@@ -82,10 +91,27 @@ def drop_load(t, y, iw, acc, outcome):
         iw[IW_CODE + k] = APART
 
 
+@kernel(inline=True)
+def time_out(t, w):
+    """The load still on the belt at t = t_max, neither scraped (9.1) nor escaped (9.2), leaves
+    the run as a timeout at t (docs/model.md (9.3); run: t_max before t_c, the fence runs on
+    alone; finish: at the end of the run)."""
+    drop_load(t, w.y, w.iw, w.acc, Rs.TIMEOUT)
+
+
+@kernel(inline=True)
+def count_stage_time(iw, acc, t, t1):
+    """Add the step [t, t1] to the time in its stage (docs/model.md (10.2)): the integral of
+    [stage(t) = S] as a sum over the steps up to the exit (the stage is fixed within a step:
+    its contacts change only at events, which end a step)."""
+    acc[A_STAGE + stage_of(iw)] += t1 - t
+
+
 @kernel()
 def try_ride(y, p, iw):
-    """A load with no contact whose slip is below numerics.SNAP_SLIP eps_v rides the belt in
-    closed form from here on (MODEL.md §8): velocity (v, 0), no spin. Returns whether it snapped."""
+    """A load with no contact whose slip is below numerics.SNAP_SLIP eps_v (docs/model.md (15.9))
+    rides the belt in closed form from here on (8.1): velocity (v, 0), no spin. Returns whether it
+    snapped."""
     if iw[IW_LOAD] == 0 or iw[IW_RIDE] != 0 or in_contact(iw):
         return False
     slip2 = (y[3] - p[Lp.V]) ** 2 + y[4] ** 2 + (p[Lp.RHO] * y[5]) ** 2
@@ -99,12 +125,19 @@ def try_ride(y, p, iw):
 
 
 @kernel(inline=True)
+def natural_frequency(k2, i2):
+    """omega_n = sqrt(K2 / I2) [rad/s], the undamped natural frequency of the flexible element
+    with the fence (docs/model.md (3.6))."""
+    return math.sqrt(k2 / i2)
+
+
+@kernel(inline=True)
 def swing_amplitude(dev, rate, p, mode):
     """Undamped amplitude [rad] of the fence's swing about its drive from the deflection dev =
-    alpha - alpha_w [rad] and its rate [rad/s] (MODEL.md §11 residual_amplitude, §14
+    alpha - alpha_w [rad] and its rate [rad/s] (docs/model.md (11.5) residual_amplitude, (14.4)
     start_amplitude): sqrt(dev^2 + (rate / omega_n)^2), omega_n = sqrt(K2 / I2); |dev| when
     K2 = 0 (or so small that omega_n underflows to 0) or the fence follows its drive."""
-    wn = math.sqrt(p[Lp.K2] / p[Lp.I2])
+    wn = natural_frequency(p[Lp.K2], p[Lp.I2])
     if mode == FM_KELVIN and wn > 0.0:
         return math.sqrt(dev ** 2 + (rate / wn) ** 2)  # §11
     return abs(dev)
@@ -112,16 +145,19 @@ def swing_amplitude(dev, rate, p, mode):
 
 @kernel()
 def at_t_c(t, y, p, iw, acc):
-    """Results read at t_c (MODEL.md §11): residual deflection and amplitude, damper energy."""
+    """Results read at t_c: residual_deflection |alpha - alpha_w| (docs/model.md (11.4)), the
+    residual amplitude (11.5), damper energy (11.6)."""
     al, dal, aw, daw = fence_state(t, y, p, iw[IW_MODE])
-    acc[A_RESID] = abs(al - aw)
-    acc[A_RESID_AMP] = swing_amplitude(al - aw, dal - daw, p, iw[IW_MODE])
+    dev, rate = deflection(al, dal, aw, daw)
+    acc[A_RESID] = abs(dev)
+    acc[A_RESID_AMP] = swing_amplitude(dev, rate, p, iw[IW_MODE])
     acc[A_E_DAMPER] = y[8]
 
 
 @kernel()
 def error_scales(p, atol):
-    """atol: the absolute tolerance of each state component, TOL (p[TOL]) times its scale.
+    """atol: the absolute tolerance of each state component, TOL (p[TOL]) times its scale
+    (docs/model.md (15.2)).
     The scales are chosen so that every component's allowed error moves a point of the scene by
     about the same distance, TOL l (l the fence length) or TOL x the fastest speed:
       x, y: l;  phi: l / r;  x', y': speed;  omega: speed / r;  alpha: 1 rad (l at the tip);
@@ -145,8 +181,9 @@ def error_scales(p, atol):
 
 @kernel()
 def start(p, w):
-    """Initial state of the load (MODEL.md §1), modes, accumulators, step counts and the error
-    scales (error_scales) of a cycle; the fence's (alpha, alpha') in w.y are left as they are."""
+    """Initial state of the load (docs/model.md (1.5)), modes, accumulators, step counts and the
+    error scales (error_scales) of a cycle; the fence's (alpha, alpha') in w.y are left as they
+    are: a stream's fence carries over from one cycle into the next (14.3)."""
     al, dal = w.y[6], w.y[7]
     initial_state(p, w.y)
     w.y[6] = al
@@ -156,7 +193,7 @@ def start(p, w):
         iw[j] = 1
     iw[IW_MODE] = FM_KELVIN if int(p[Lp.DRIVE]) == Lp.DRIVE_FLEXIBLE else FM_KINEMATIC
     iw[IW_LOAD] = 1
-    iw[IW_RIDE] = 1  # at t = 0 the load moves with the belt (MODEL.md §1)
+    iw[IW_RIDE] = 1  # at t = 0 the load moves with the belt (docs/model.md §1)
     for i in range(N_ACC):
         acc[i] = 0.0
     for i in (A_T_FIRST, A_T_LOSS, A_T_EXIT, A_X_EXIT, A_PHI_EXIT, A_E_CONTACT, A_RESID, A_RESID_AMP,
@@ -188,8 +225,8 @@ def after_step(t1, y1, p, iw, kind, codes1, tags1, edge1, acc):
 
 @kernel(inline=True)
 def error_estimate(sum_sq, tol):
-    """The run's error estimate (results.py error_estimate) from the sum of the squared error
-    norms of its accepted steps, each the local error relative to its tolerance
+    """The run's error estimate (results.py error_estimate; docs/model.md (15.12)) from the sum of
+    the squared error norms of its accepted steps, each the local error relative to its tolerance
     (rk.error_norm): tol sqrt(sum err^2), the root-sum-square of the local errors relative to
     the error scales. Local errors of varying sign add up like a random walk, not like a plain
     sum, which overstates the error; results/error_estimate.md measures both against the
@@ -198,15 +235,36 @@ def error_estimate(sum_sq, tol):
 
 
 @kernel(inline=True)
+def contact_time(t_first, t_loss, t_exit):
+    """contact_time = t_B - t_A (docs/model.md (11.8)) [s]: t_A the first load-fence contact
+    (t_first_contact), t_B its last loss, t_exit if the load is still in contact then; 0 for a
+    run without contact."""
+    if math.isnan(t_first):
+        return 0.0
+    b = t_loss if not math.isnan(t_loss) else t_exit
+    return b - t_first
+
+
+@kernel(inline=True)
+def overload_and_safe(peak_force, freefall_force):
+    """overload = peak_force / F_ff and safe (1.0 when overload <= 1, tested as peak_force <=
+    F_ff; else 0.0) (docs/model.md (7.3))."""
+    return peak_force / freefall_force, 1.0 if peak_force <= freefall_force else 0.0
+
+
+@kernel(inline=True)
+def deflection_ok(deflection_max, dalpha_perm):
+    """deflection_ok: 1.0 when deflection_max <= the permitted deflection, else 0.0 (docs/model.md
+    (11.3))."""
+    return 1.0 if deflection_max <= dalpha_perm else 0.0
+
+
+@kernel(inline=True)
 def contact_results(acc, out):
-    """The contact results of MODEL.md §11 into out: first contact, contact time, impacts,
+    """The contact results of docs/model.md §11 into out: first contact, contact time, impacts,
     stage times, largest penetration."""
     out[Rs.RC_T_FIRST_CONTACT] = acc[A_T_FIRST]
-    if math.isnan(acc[A_T_FIRST]):
-        out[Rs.RC_CONTACT_TIME] = 0.0
-    else:
-        b = acc[A_T_LOSS] if not math.isnan(acc[A_T_LOSS]) else acc[A_T_EXIT]
-        out[Rs.RC_CONTACT_TIME] = b - acc[A_T_FIRST]
+    out[Rs.RC_CONTACT_TIME] = contact_time(acc[A_T_FIRST], acc[A_T_LOSS], acc[A_T_EXIT])
     out[Rs.RC_N_IMPACTS] = acc[A_N_IMPACTS]
     for i, rc in enumerate((Rs.RC_T_S1, Rs.RC_T_S2, Rs.RC_T_S3, Rs.RC_T_S4, Rs.RC_T_RAIL)):
         out[rc] = acc[A_STAGE + i]
@@ -215,12 +273,12 @@ def contact_results(acc, out):
 
 @kernel()
 def finish(p, w, out):
-    """The results of MODEL.md §11 from the run's accumulators."""
+    """The results of docs/model.md §11 from the run's accumulators."""
     acc, y = w.acc, w.y
     if acc[A_STATUS] != Rs.ST_OK:
         acc[A_OUTCOME] = Rs.FAILED
     if acc[A_EXITED] == 0.0 and acc[A_STATUS] == Rs.ST_OK:
-        drop_load(p[Lp.TMAX], y, w.iw, acc, Rs.TIMEOUT)
+        time_out(p[Lp.TMAX], w)
     if math.isnan(acc[A_E_CONTACT]):
         acc[A_E_CONTACT] = y[9]
     for k in range(Rs.N_CYCLE_RESULTS):
@@ -231,10 +289,9 @@ def finish(p, w, out):
     out[Rs.RC_PEAK_FORCE] = nf
     out[Rs.RC_PEAK_RAIL_FORCE] = acc[A_QMAX + Q_NR]
     out[Rs.RC_FREEFALL_FORCE] = p[Lp.FFORCE]
-    out[Rs.RC_OVERLOAD] = nf / p[Lp.FFORCE]
-    out[Rs.RC_SAFE] = 1.0 if nf <= p[Lp.FFORCE] else 0.0
+    out[Rs.RC_OVERLOAD], out[Rs.RC_SAFE] = overload_and_safe(nf, p[Lp.FFORCE])
     out[Rs.RC_DEFLECTION_MAX] = acc[A_QMAX + Q_DEFL]
-    out[Rs.RC_DEFLECTION_OK] = 1.0 if acc[A_QMAX + Q_DEFL] <= p[Lp.DAPERM] else 0.0
+    out[Rs.RC_DEFLECTION_OK] = deflection_ok(acc[A_QMAX + Q_DEFL], p[Lp.DAPERM])
     out[Rs.RC_RESIDUAL_DEFLECTION] = acc[A_RESID]
     out[Rs.RC_RESIDUAL_AMPLITUDE] = acc[A_RESID_AMP]
     out[Rs.RC_ALPHA_MAX] = acc[A_QMAX + Q_ALPHA]

@@ -1,4 +1,4 @@
-"""Events inside a step of the cycle, located on its dense output (MODEL.md §9: "event times are
+"""Events inside a step of the cycle, located on its dense output (docs/model.md §9: "event times are
 located inside the step, not rounded to it"): a contact slot changing its code, side or edge; a
 graze (a gap that closes and opens again between two apart ends of the step); an outcome
 (scraped, escaped). A release (a pushing contact whose force returns to 0) is located again on
@@ -47,7 +47,7 @@ def neg_gap(ctx, theta):
 
 @kernel(inline=True)
 def outcome_hit(kind, y, p):
-    """Has outcome `kind` (0 scraped, 1 escaped) happened at state y (MODEL.md §9)?"""
+    """Has outcome `kind` (0 scraped, 1 escaped) happened at state y (docs/model.md §9)?"""
     m = outcome_margin(kind, y, p)
     return m >= 0.0 if kind == 0 else m > 0.0
 
@@ -89,7 +89,7 @@ def graze_theta(p, w, t, h):
     """Earliest theta at which a slot apart at both ends of the step touches in between: every
     gap whose rate changes sign from closing to opening is minimised on the dense output
     (no cheaper pre-test: a cubic through the end values missed a 10 us tip clip whose gap
-    function changes branch, MODEL.md §5.2's box distance, inside the step).
+    function changes branch, docs/model.md §5.2's box distance, inside the step).
     Returns (theta at the minimum, slot) or (2, -1)."""
     best = 2.0
     slot = -1

@@ -1,7 +1,7 @@
 """The cycle's state, its work arrays and their index constants (compile-time constants for Numba).
 
 State y (N_STATE = 13):
-  0-5  load x, y, phi, x', y', omega                       (MODEL.md §1)
+  0-5  load x, y, phi, x', y', omega                       (docs/model.md §1)
   6-7  fence alpha, alpha'                                  (§3; alpha_w itself when kinematic)
   8    damper energy  int B2 (alpha_w' - alpha')^2 dt       (§11, read at t_c)
   9    contact energy int sum (N - N_el) D' dt              (§11)
@@ -37,7 +37,7 @@ AX_NF, AX_NR, AX_TAU, AX_DMAX, AX_FX, AX_FY, AX_TQ, AX_PDISS, AX_PFRIC = 0, 1, 2
 # ... and the frame the contacts were evaluated in (frame_at's values; AX_FRAME 1 when set),
 # which classify reuses at the end of a step instead of computing it again
 AX_CA, AX_SA, AX_DAL, AX_CPHI, AX_SPHI, AX_FRAME, N_AUX = 9, 10, 11, 12, 13, 14, 15
-# tracked maxima (MODEL.md §11)
+# tracked maxima (docs/model.md §11)
 Q_NF, Q_NR, Q_DEFL, Q_ALPHA, N_Q = 0, 1, 2, 3, 4
 # rows of Work.qv: the quantities at the step's start and end, two samples inside it, a scratch
 # row, and where the step's maxima lie (peaks.track_maxima)

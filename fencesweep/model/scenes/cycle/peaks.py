@@ -1,4 +1,4 @@
-"""The tracked maxima of a cycle (MODEL.md §11: peak_force, peak_rail_force, deflection_max,
+"""The tracked maxima of a cycle (docs/model.md §11: peak_force, peak_rail_force, deflection_max,
 alpha_max), located inside each step (§9: "and so is the peak force"): a quantity that rises at
 the step's start and falls at its end has an interior maximum, found by Brent's search on the
 step's dense output (kernel/search.py) and valued at the state of a step of the method to it."""
@@ -14,15 +14,18 @@ from fencesweep.model.scenes.cycle.events import ensure_dense
 from fencesweep.model.scenes.cycle.layout import (A_QMAX, AX_NF, AX_NR, IW_LOAD, IW_MODE, IW_RIDE, N_CTRL, N_Q,
                                                   N_STATE, Q_ALPHA, Q_DEFL, Q_NF, Q_NR, QV_0, QV_1, QV_A, QV_B,
                                                   QV_S, QV_THETA)
-from fencesweep.model.scenes.cycle.rhs import fence_state, rhs, step
+from fencesweep.model.scenes.cycle.rhs import deflection, fence_state, rhs, step
 
 UNJUDGED = -1.0  # rising[k] when the step before did not judge quantity k at its end
 
 
 @kernel()
 def quantities(t, y, p, iw, aux, dy, q, forces):
-    """The tracked quantities at (t, y): fence and rail force sums, |alpha - alpha_w|, alpha.
-    Without `forces` the force sums (which cost a right-hand side) are left as they are."""
+    """The tracked quantities at (t, y), whose maxima over t are peak_force, peak_rail_force
+    (docs/model.md (11.1)), deflection_max and alpha_max (11.2): the fence and rail force sums,
+    |alpha - alpha_w|, alpha. Their running maxima are kept at the steps' ends (run.move_on)
+    and inside the steps (track_maxima). Without `forces` the force sums (which cost a
+    right-hand side) are left as they are."""
     al, dal, aw, daw = fence_state(t, y, p, iw[IW_MODE])
     if forces:
         q[Q_NF] = 0.0
@@ -31,7 +34,8 @@ def quantities(t, y, p, iw, aux, dy, q, forces):
             rhs(t, y, p, iw, dy, aux)
             q[Q_NF] = aux[AX_NF]
             q[Q_NR] = aux[AX_NR]
-    q[Q_DEFL] = abs(al - aw)
+    dev, rate = deflection(al, dal, aw, daw)
+    q[Q_DEFL] = abs(dev)
     q[Q_ALPHA] = al
 
 
@@ -41,7 +45,8 @@ def quantities_from_aux(t, y, p, iw, aux, q):
     al, dal, aw, daw = fence_state(t, y, p, iw[IW_MODE])
     q[Q_NF] = aux[AX_NF]
     q[Q_NR] = aux[AX_NR]
-    q[Q_DEFL] = abs(al - aw)
+    dev, rate = deflection(al, dal, aw, daw)
+    q[Q_DEFL] = abs(dev)
     q[Q_ALPHA] = al
 
 
@@ -71,10 +76,10 @@ def near_maximum(q0, q1, acc, k):
 @kernel(inline=True)
 def fence_slopes(t, y, p, iw):
     """Time derivatives of the tracked fence quantities at (t, y): of the deflection
-    |alpha - alpha_w| (MODEL.md §11) and of alpha."""
+    |alpha - alpha_w| (docs/model.md §11) and of alpha."""
     al, dal, aw, daw = fence_state(t, y, p, iw[IW_MODE])
-    rate = dal - daw
-    if al - aw < 0.0:
+    dev, rate = deflection(al, dal, aw, daw)
+    if dev < 0.0:
         rate = -rate
     elif al == aw:
         rate = abs(rate)
@@ -139,7 +144,7 @@ def judge_fence(p, w, t, h, theta_end):
 def track_maxima(p, w, t, h, theta_end):
     """Running maxima of the tracked quantities over the step [t, t + theta_end h]: the end
     samples, and an interior maximum (the quantity rising at the start and falling at the
-    end, judged on the dense output) located by Brent's search (search.peak_max, MODEL.md §9).
+    end, judged on the dense output) located by Brent's search (search.peak_max, docs/model.md §9).
     w.rising[k] says whether quantity k rose at the start (1, 0; UNJUDGED when the step before
     was far from its maximum, or after an event: rising[N_Q] = 1); on return it says so for
     the step's end. The fence's quantities are judged by their derivatives at the ends

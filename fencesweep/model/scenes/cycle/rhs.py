@@ -1,4 +1,4 @@
-"""The cycle's right-hand side (MODEL.md §3, §5, §6): the fence's equation, the load's contacts
+"""The cycle's right-hand side (docs/model.md §3, §5, §6): the fence's equation, the load's contacts
 and its belt friction. Between events it is smooth: it evaluates only the contacts whose slot
 is not APART, in the mode (iw) fixed at the step's start."""
 from __future__ import annotations
@@ -11,7 +11,8 @@ from fencesweep.model import layout as Lp
 from fencesweep.model.contact import belt_friction
 from fencesweep.model.drive import drive_angle
 from fencesweep.model.scenes.contacts import (APART, PUSH, RAIL0, TIP, corner_fence_force, corner_fence_geometry,
-                                              corner_rail_force, tip_edge_force, tip_edge_normal, tip_local)
+                                              corner_rail_force, tip_edge_force, tip_edge_normal, tip_local,
+                                              tip_position)
 from fencesweep.model.scenes.cycle.layout import (AX_CA, AX_CPHI, AX_DAL, AX_DMAX, AX_FRAME, AX_FX, AX_FY, AX_NF,
                                                   AX_NR, AX_PDISS, AX_PFRIC, AX_SA, AX_SPHI, AX_TAU, AX_TQ,
                                                   FM_KELVIN, FM_KINEMATIC, IW_CODE, IW_EDGE, IW_LOAD, IW_MODE,
@@ -21,7 +22,8 @@ from fencesweep.model.scenes.load import corner_motion
 
 @kernel(inline=True)
 def fence_state(t, y, p, mode):
-    """(alpha, alpha', alpha_w, alpha_w'): the fence follows alpha_w when kinematic (§3)."""
+    """(alpha, alpha', alpha_w, alpha_w'): the fence follows alpha_w when kinematic, alpha = alpha_w,
+    alpha' = alpha_w' (docs/model.md (3.3): the rigid drive, and the free one until its release)."""
     aw, daw = drive_angle(t, p)
     if mode == FM_KINEMATIC:
         return aw, daw, aw, daw
@@ -30,8 +32,9 @@ def fence_state(t, y, p, mode):
 
 @kernel(inline=True)
 def add_contact(aux, ax_n, fx, fy, tq, tau, n, p_diss, p_fric, D):
-    """Add one contact's forces (contacts.py) to the sums in aux: on the load, the moment on the
-    fence, its normal force to the fence or rail sum, the dissipated powers, the penetration."""
+    """Add one contact's forces (contacts.py) to the sums in aux (docs/model.md (5.14)): on the
+    load, the moment on the fence, its normal force to the fence or rail sum, the dissipated
+    powers, the penetration."""
     aux[AX_FX] += fx
     aux[AX_FY] += fy
     aux[AX_TQ] += tq
@@ -83,9 +86,7 @@ def tip_sum(y, p, iw, ca, sa, dal, cphi, sphi, aux):
         return
     hl = 0.5 * p[Lp.LL]
     hw = 0.5 * p[Lp.AA]
-    fl = p[Lp.FL]
-    tx = fl * ca
-    ty = fl * sa
+    tx, ty = tip_position(p[Lp.FL], ca, sa)
     tlx, tly, dx, dyy = tip_local(tx, ty, y[0], y[1], cphi, sphi)
     D, nex, ney = tip_edge_normal(iw[IW_EDGE], tlx, tly, hl, hw, cphi, sphi)
     a, b, c, d, n, pd, pf, Dd = tip_edge_force(D, nex, ney, tx, ty, dx, dyy, y[3], y[4], y[5], dal,
@@ -95,7 +96,7 @@ def tip_sum(y, p, iw, ca, sa, dal, cphi, sphi, aux):
 
 @kernel(inline=True)
 def contact_sum(y, p, iw, ca, sa, dal, aux):
-    """Sum into aux the forces of every slot that is not APART (MODEL.md §5): on the load
+    """Sum into aux the forces of every slot that is not APART (docs/model.md §5): on the load
     (AX_FX, AX_FY, AX_TQ), the moment on the fence (AX_TAU), the normal-force sums and the
     dissipated powers."""
     cphi = math.cos(y[2])
@@ -107,8 +108,9 @@ def contact_sum(y, p, iw, ca, sa, dal, aux):
 
 @kernel(inline=True)
 def load_rhs(y, p, iw, ca, sa, dal, dy, aux):
-    """Load equations (MODEL.md §1, §5, §6): velocities, and accelerations from belt friction
-    and the contacts; the closed-form belt ride when it rides. Returns the moment on the fence."""
+    """Load equations (docs/model.md (6.5)): velocities, and accelerations from belt friction
+    and the contacts; the closed-form belt ride (8.1) when it rides. Returns the moment on the
+    fence."""
     dy[0] = y[3]
     dy[1] = y[4]
     dy[2] = y[5]
@@ -123,22 +125,72 @@ def load_rhs(y, p, iw, ca, sa, dal, dy, aux):
     dy[4] = (aux[AX_FY] + by) / p[Lp.M1]
     dy[5] = (aux[AX_TQ] + bt) / p[Lp.I1]
     dy[9] = aux[AX_PDISS]
-    dy[11] = bx * vx + by * vy + bt * om
+    dy[11] = belt_power(bx, by, bt, vx, vy, om)
     dy[12] = aux[AX_PFRIC]
     return aux[AX_TAU]
 
 
 @kernel(inline=True)
+def belt_power(bx, by, bt, vx, vy, om):
+    """The power of the belt on the load, F_b . X' + M_b omega [W] (docs/model.md (11.11), W_belt;
+    integrated as the state's component 11; E_friction's power is contacts.friction_power)."""
+    return bx * vx + by * vy + bt * om
+
+
+@kernel(inline=True)
+def deflection(al, dal, aw, daw):
+    """The fence's deflection from its drive, alpha - alpha_w [rad] (docs/model.md (3.7)), and its
+    rate alpha' - alpha_w' [rad/s]."""
+    return al - aw, dal - daw
+
+
+@kernel(inline=True)
 def element_torque(aw, daw, al, dal, b2, k2):
-    """Torque of the flexible element on the fence [N m] (MODEL.md §3): B2 (alpha_w' - alpha')
+    """Torque of the flexible element on the fence [N m] (docs/model.md §3): B2 (alpha_w' - alpha')
     + K2 (alpha_w - alpha)."""
     return b2 * (daw - dal) + k2 * (aw - al)
 
 
+@kernel(inline=True)
+def damper_power(b2, daw, dal):
+    """The power the element's damper dissipates, B2 (alpha_w' - alpha')^2 [W] (docs/model.md
+    (11.6); integrated as the state's component 8, damper_energy)."""
+    return b2 * (daw - dal) ** 2
+
+
+@kernel(inline=True)
+def drive_power(torque, daw):
+    """The power of the drive lever, its torque on the fence times alpha_w' [W] (docs/model.md
+    (11.10); integrated as the state's component 10, W_drive): the element's torque, 0 for the
+    free fence, -tau for the rigid drive (the lever then takes the load's moment itself)."""
+    return torque * daw
+
+
+@kernel(inline=True)
+def fence_rhs(mode, al, dal, aw, daw, tau, p, dy):
+    """The fence's rows of the right-hand side (alpha, alpha' and the energies of the fence) under
+    the load's moment tau (docs/model.md (3.2)): I2 alpha'' = B2 (alpha_w' - alpha') + K2 (alpha_w -
+    alpha) + tau, the element's torque from element_torque; the free fence after its release
+    I2 alpha'' = tau (3.4); kinematic (3.3): alpha follows alpha_w, no rows of its own."""
+    dy[8] = 0.0
+    if mode == FM_KINEMATIC:
+        dy[6] = 0.0
+        dy[7] = 0.0
+        dy[10] = drive_power(-tau, daw)
+        return
+    torque = 0.0
+    if mode == FM_KELVIN:
+        torque = element_torque(aw, daw, al, dal, p[Lp.B2], p[Lp.K2])
+        dy[8] = damper_power(p[Lp.B2], daw, dal)
+    dy[6] = dal
+    dy[7] = (torque + tau) / p[Lp.I2]
+    dy[10] = drive_power(torque, daw)
+
+
 @kernel()
 def rhs(t, y, p, iw, dy, aux):
-    """Right-hand side of the cycle in the mode of iw; fills dy and aux (contact forces).
-    Fence (MODEL.md §3): I2 alpha'' = B2 (alpha_w' - alpha') + K2 (alpha_w - alpha) + tau."""
+    """Right-hand side of the cycle in the mode of iw; fills dy and aux (contact forces): the
+    load's (load_rhs, docs/model.md §6) and the fence's (fence_rhs, docs/model.md §3)."""
     mode = iw[IW_MODE]
     al, dal, aw, daw = fence_state(t, y, p, mode)
     for i in range(N_AUX):
@@ -149,19 +201,7 @@ def rhs(t, y, p, iw, dy, aux):
     else:
         for i in (0, 1, 2, 3, 4, 5, 9, 11, 12):
             dy[i] = 0.0
-    dy[8] = 0.0
-    if mode == FM_KINEMATIC:
-        dy[6] = 0.0
-        dy[7] = 0.0
-        dy[10] = -tau * daw
-        return
-    torque = 0.0
-    if mode == FM_KELVIN:
-        torque = element_torque(aw, daw, al, dal, p[Lp.B2], p[Lp.K2])
-        dy[8] = p[Lp.B2] * (daw - dal) ** 2
-    dy[6] = dal
-    dy[7] = (torque + tau) / p[Lp.I2]
-    dy[10] = torque * daw
+    fence_rhs(mode, al, dal, aw, daw, tau, p, dy)
 
 
 #: one step of the integrator with this right-hand side (kernel/rk.py stepper)

@@ -1,4 +1,4 @@
-"""The cycle's loop (MODEL.md §8-§9): kernel/driver.py's `integrate` with the cycle's right-hand
+"""The cycle's loop (docs/model.md §8-§9): kernel/driver.py's `integrate` with the cycle's right-hand
 side and `accept`, the cycle's handling of each accepted step:
 
   the step's end classified -> the first event inside it located on its dense output (a contact
@@ -22,13 +22,13 @@ from fencesweep.model import layout as Lp
 from fencesweep.model import results as Rs
 from fencesweep.model.contact import pulse_time
 from fencesweep.model.scenes.contacts import N_SLOTS
-from fencesweep.model.scenes.cycle.books import after_step, at_t_c, drop_load, record
+from fencesweep.model.scenes.cycle.books import after_step, at_t_c, count_stage_time, record, time_out
 from fencesweep.model.scenes.cycle.events import event_state, find_event
-from fencesweep.model.scenes.cycle.layout import (A_DMAX, A_EXITED, A_QMAX, A_STAGE, A_STATUS, AX_DMAX, N_Q,
-                                                  N_STATE, QV_0, QV_1)
+from fencesweep.model.scenes.cycle.layout import (A_DMAX, A_EXITED, A_QMAX, A_STATUS, AX_DMAX, N_Q, N_STATE, QV_0,
+                                                  QV_1)
 from fencesweep.model.scenes.cycle.peaks import quantities, quantities_from_aux, record_peaks, track_maxima
 from fencesweep.model.scenes.cycle.rhs import rhs, step
-from fencesweep.model.scenes.cycle.slots import classify, classify_after_rhs, new_push, stage_of
+from fencesweep.model.scenes.cycle.slots import classify, classify_after_rhs, new_push
 
 
 @kernel(inline=True)
@@ -42,7 +42,7 @@ def all_finite(y):
 @kernel(inline=True)
 def onset_step(p, w, h_next):
     """The step after a contact onset: at most numerics.ONSET_STEP of the load's pulse time at the
-    fastest closing speed (contact.pulse_time)."""
+    fastest closing speed (contact.pulse_time; docs/model.md (15.8))."""
     return min(h_next, NU.ONSET_STEP * pulse_time(p[Lp.LAW], p[Lp.M1], p[Lp.KC], w.atol[3] / p[Lp.TOL]))
 
 
@@ -77,8 +77,8 @@ def move_on(p, w, t1, kind, edge1, h_next):
 
 @kernel(inline=True)
 def check_state(p, w):
-    """A run that cannot be trusted ends (MODEL.md §5): a non-finite state, or a penetration
-    deeper than half the load's smaller side. Returns whether the run goes on."""
+    """A run that cannot be trusted ends (docs/model.md (5.15)): a non-finite state, or a
+    penetration deeper than half the load's smaller side. Returns whether the run goes on."""
     if not all_finite(w.y):
         w.acc[A_STATUS] = Rs.ST_NONFINITE
     elif w.acc[A_DMAX] > 0.5 * min(p[Lp.LL], p[Lp.AA]):
@@ -104,7 +104,7 @@ def accept(p, w, t, h, t1, err, h_next):
     if w.traj.shape[0] > 0:
         record_peaks(p, w, t, h, theta)
     if not exited:
-        w.acc[A_STAGE + stage_of(w.iw)] += t1 - t
+        count_stage_time(w.iw, w.acc, t, t1)
     h_next = move_on(p, w, t1, kind, edge1, h_next)
     if t1 == p[Lp.TC]:
         at_t_c(t1, w.y, p, w.iw, w.acc)
@@ -132,9 +132,9 @@ def run(p, w):
         if driver.reached(t, t_end):
             if exited or t >= tc:
                 return
-            # t_max before t_c (MODEL.md §9 timeout): the load leaves, the fence runs on alone to t_c
-            # (its results are over [0, max(t_exit, t_c)])
-            drop_load(t, w.y, w.iw, w.acc, Rs.TIMEOUT)
+            # t_max before t_c (docs/model.md (9.3) timeout): the load leaves, the fence runs on alone
+            # to t_c (its results are over [0, max(t_exit, t_c)])
+            time_out(t, w)
             rhs(t, w.y, p, w.iw, w.K[0], w.aux)
             continue
         t, h, why = loop(ctl, p, w, t, t_end, tc, h)

@@ -1,4 +1,4 @@
-"""The contact slots of the cycle at a state (MODEL.md §5): each slot's code (APART / PUSH /
+"""The contact slots of the cycle at a state (docs/model.md §5): each slot's code (APART / PUSH /
 CLIPPED, contacts.next_code), its tag (a corner's side sigma_j, §5.1; the tip's edge, §5.2), and
 its gap and the gap's rate (> 0 apart: what the graze check minimises); the stages (§10).
 
@@ -12,7 +12,7 @@ from fencesweep.kernel.jit import kernel
 from fencesweep.model import layout as Lp
 from fencesweep.model import results as Rs
 from fencesweep.model.scenes.contacts import (APART, CLIPPED, N_SLOTS, PUSH, RAIL0, TIP, corner_fence_geometry, next_code,
-                                              tip_edge_choice, tip_edge_normal, tip_gap, tip_local)
+                                              tip_edge_choice, tip_edge_normal, tip_gap, tip_local, tip_position)
 from fencesweep.model.scenes.cycle.layout import (AX_CA, AX_CPHI, AX_DAL, AX_FRAME, AX_SA, AX_SPHI, IW_CODE, IW_EDGE,
                                                   IW_LOAD, IW_MODE)
 from fencesweep.model.scenes.cycle.rhs import fence_state
@@ -21,8 +21,9 @@ from fencesweep.model.scenes.load import corner_motion
 
 @kernel(inline=True)
 def corner_side(s, D, sg, fl):
-    """The side memory sigma_j of MODEL.md §5.1 at a corner's s (along the fence) and D = -sigma h:
-    beyond the tip sign(h) (h = 0 counts as +1), behind the pivot +1, else unchanged."""
+    """The side memory sigma_j (docs/model.md (5.2)) at a corner's s (along the fence) and
+    D = -sigma h: beyond the tip sign(h) (h = 0 counts as +1), behind the pivot +1, else
+    unchanged (sigma_j(0) = +1: books.start; the change is an event: take_sides)."""
     if s > fl:
         return -1 if -D * sg < 0.0 else 1  # sign(h), h = -sigma D
     if s < 0.0:
@@ -54,10 +55,8 @@ def tip_slot(y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force):
     the load while apart, the depth below the edge it pushes (tip_edge_choice) inside."""
     hl = 0.5 * p[Lp.LL]
     hw = 0.5 * p[Lp.AA]
-    fl = p[Lp.FL]
     cur = iw[IW_CODE + TIP]
-    tx = fl * ca
-    ty = fl * sa
+    tx, ty = tip_position(p[Lp.FL], ca, sa)
     tlx, tly, dx, dyy = tip_local(tx, ty, y[0], y[1], cphi, sphi)
     rvx = -dal * ty - y[3]  # d/dt (T - X)
     rvy = dal * tx - y[4]
@@ -156,7 +155,7 @@ def changed_mask(iw, codes, tags):
 
 @kernel(inline=True)
 def take_sides(iw, tags):
-    """Side memory sigma_j (MODEL.md §5.1) from classify's tags at the step's end (corner_side
+    """Side memory sigma_j (docs/model.md §5.1) from classify's tags at the step's end (corner_side
     applies the rule). Returns whether any side changed."""
     changed = False
     for j in range(RAIL0):
@@ -168,7 +167,7 @@ def take_sides(iw, tags):
 
 @kernel(inline=True)
 def releases(iw, codes):
-    """Are codes releases only: some slots pushing in iw clipped in codes (MODEL.md §4: N
+    """Are codes releases only: some slots pushing in iw clipped in codes (docs/model.md §4: N
     returned to 0), every other slot's code as in iw?"""
     rel = False
     for k in range(N_SLOTS):
@@ -208,7 +207,8 @@ def in_contact(iw):
 
 @kernel()
 def stage_of(iw):
-    """Stage of MODEL.md §10 from the slots that carry force."""
+    """Stage from the slots that carry force (docs/model.md (10.1)): n_f pushing load-fence
+    slots (corners on the fence, the tip), rail when a corner-rail slot pushes."""
     nfc = 0
     rail = False
     for k in range(N_SLOTS):
