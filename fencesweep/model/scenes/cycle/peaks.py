@@ -4,6 +4,8 @@ the step's start and falls at its end has an interior maximum, found by Brent's 
 step's dense output (kernel/search.py) and valued at the state of a step of the method to it."""
 from __future__ import annotations
 
+import math
+
 from fencesweep.kernel import numerics as NU
 from fencesweep.kernel import rk
 from fencesweep.kernel.jit import kernel
@@ -74,16 +76,51 @@ def near_maximum(q0, q1, acc, k):
 
 
 @kernel(inline=True)
-def fence_slopes(t, y, p, iw):
-    """Time derivatives of the tracked fence quantities at (t, y): of the deflection
-    |alpha - alpha_w| (docs/model.md §11) and of alpha."""
+def fence_values(t, y, p, iw):
+    """The fence's tracked values at (t, y) and their rates: the deflection dalpha = alpha -
+    alpha_w (docs/model.md §11; deflection_max is max |dalpha|), its rate, alpha and alpha'."""
     al, dal, aw, daw = fence_state(t, y, p, iw[IW_MODE])
     dev, rate = deflection(al, dal, aw, daw)
-    if dev < 0.0:
-        rate = -rate
-    elif al == aw:
-        rate = abs(rate)
-    return rate, dal
+    return dev, rate, al, dal
+
+
+@kernel(inline=True)
+def hermite_max(q0, d0, q1, d1):
+    """The largest interior maximum on (0, 1) of the cubic with q(0) = q0, q'(0) = d0, q(1) = q1,
+    q'(1) = d1 (derivatives in the unit of the interval), -inf when it has none. With the
+    values and rates of a quantity at a step's ends, it says whether the step can hold a
+    maximum above them, and about how high: the cubic is the quantity to O(h^4)."""
+    c2 = 3.0 * (q1 - q0) - 2.0 * d0 - d1
+    c3 = 2.0 * (q0 - q1) + d0 + d1
+    best = -math.inf
+    # q'(s) = d0 + 2 c2 s + 3 c3 s^2 = 0, a maximum where q''(s) = 2 c2 + 6 c3 s < 0
+    a, b, c = 3.0 * c3, 2.0 * c2, d0
+    if abs(a) <= 1e-12 * (abs(b) + abs(c)):
+        roots = (-c / b if b != 0.0 else -1.0, -1.0)
+    else:
+        disc = b * b - 4.0 * a * c
+        if disc < 0.0:
+            return best
+        r = math.sqrt(disc)
+        roots = ((-b - r) / (2.0 * a), (-b + r) / (2.0 * a))
+    for s in roots:
+        if 0.0 < s < 1.0 and 2.0 * c2 + 6.0 * c3 * s < 0.0:
+            best = max(best, q0 + s * (d0 + s * (c2 + s * c3)))
+    return best
+
+
+@kernel(inline=True)
+def fence_peaks(p, w, t, h, theta_end):
+    """Modelled interior maxima of the fence's tracked quantities over the step [t, t + theta_end
+    h] into w.qv[QV_B] (-inf where the step has none): the cubic through their values and rates
+    at the step's ends (hermite_max), |dalpha| as the larger of dalpha's and -dalpha's."""
+    span = theta_end * h
+    dv0, dr0, al0, da0 = fence_values(t, w.y, p, w.iw)
+    dv1, dr1, al1, da1 = fence_values(t + span, w.y1, p, w.iw)
+    qb = w.qv[QV_B]
+    qb[Q_DEFL] = max(hermite_max(dv0, dr0 * span, dv1, dr1 * span),
+                     hermite_max(-dv0, -dr0 * span, -dv1, -dr1 * span))
+    qb[Q_ALPHA] = hermite_max(al0, da0 * span, al1, da1 * span)
 
 
 @kernel()
@@ -122,60 +159,50 @@ def judge_forces(p, w, t, h, theta_end):
     quantities(t + (theta_end - d) * h, w.tmp, p, w.iw, w.auxs, w.dy, qb, True)
 
 
-@kernel(inline=True)
-def judge_fence(p, w, t, h, theta_end):
-    """The fence's quantities, by their derivatives: whether they rose at the step's start
-    (where not judged yet), and stand-ins for samples just before its end (QV_B; only the sign
-    of their difference from the end's value is read)."""
-    rising = w.rising
-    if rising[Q_DEFL] == UNJUDGED or rising[Q_ALPHA] == UNJUDGED:
-        sd, sa = fence_slopes(t, w.y, p, w.iw)
-        if rising[Q_DEFL] == UNJUDGED:
-            rising[Q_DEFL] = 1.0 if sd > 0.0 else 0.0
-        if rising[Q_ALPHA] == UNJUDGED:
-            rising[Q_ALPHA] = 1.0 if sa > 0.0 else 0.0
-    sd, sa = fence_slopes(t + theta_end * h, w.y1, p, w.iw)
-    q1, qb = w.qv[QV_1], w.qv[QV_B]
-    qb[Q_DEFL] = q1[Q_DEFL] - sd
-    qb[Q_ALPHA] = q1[Q_ALPHA] - sa
-
-
 @kernel()
 def track_maxima(p, w, t, h, theta_end):
     """Running maxima of the tracked quantities over the step [t, t + theta_end h]: the end
-    samples, and an interior maximum (the quantity rising at the start and falling at the
-    end, judged on the dense output) located by Brent's search (search.peak_max, docs/model.md §9).
-    w.rising[k] says whether quantity k rose at the start (1, 0; UNJUDGED when the step before
-    was far from its maximum, or after an event: rising[N_Q] = 1); on return it says so for
-    the step's end. The fence's quantities are judged by their derivatives at the ends
-    (judge_fence); the force sums, which have no cheap derivative, by samples on the dense
-    output, each costing a right-hand side, and only in steps near their running maximum
-    (judge_forces). w.qv[QV_THETA][k]: the fraction of the step at which quantity k's interior
-    maximum was located, -1 where none was."""
+    samples, and an interior maximum, located by Brent's search on the dense output
+    (search.peak_max, docs/model.md §9) and valued at a step of the method to it (peak_value):
+      * the force sums, which have no cheap derivative, when they rise at the step's start and
+        fall at its end, judged by samples on the dense output (judge_forces, each a right-hand
+        side), and only in steps near their running maximum. w.rising[k] says whether force k
+        rose at the start (1, 0; UNJUDGED when the step before was far from its maximum, or
+        after an event: rising[N_Q] = 1); on return it says so for the step's end;
+      * the fence's deflection |dalpha| and alpha, when the cubic through their values and rates
+        at the step's ends has an interior maximum within numerics.PEAK_CANDIDATE of the running
+        maximum (fence_peaks): a long step can hold a maximum well above its ends, and two
+        extrema where the rates at the ends have one sign.
+    w.qv[QV_THETA][k]: the fraction of the step at which quantity k's interior maximum was
+    located, -1 where none was."""
     q0, q1, qb, ths, acc, rising = w.qv[QV_0], w.qv[QV_1], w.qv[QV_B], w.qv[QV_THETA], w.acc, w.rising
     for k in range(N_Q):
         ths[k] = -1.0
     forces = near_maximum(q0, q1, acc, Q_NF) or near_maximum(q0, q1, acc, Q_NR)
     if rising[N_Q] != 0.0:
-        for k in range(N_Q):
+        for k in range(Q_DEFL):
             rising[k] = UNJUDGED
     if forces:
         judge_forces(p, w, t, h, theta_end)
-    judge_fence(p, w, t, h, theta_end)
+    fence_peaks(p, w, t, h, theta_end)
     for k in range(N_Q):
         m = max(acc[A_QMAX + k], q0[k], q1[k])
         if k < Q_DEFL and not forces:
             acc[A_QMAX + k] = m
             rising[k] = UNJUDGED
             continue
-        if rising[k] == 1.0 and qb[k] > q1[k] and max(q1[k], q0[k]) >= NU.PEAK_CANDIDATE * m:
+        if k < Q_DEFL:
+            inside = rising[k] == 1.0 and qb[k] > q1[k] and max(q1[k], q0[k]) >= NU.PEAK_CANDIDATE * m
+            rising[k] = 1.0 if q1[k] > qb[k] else 0.0
+        else:
+            inside = qb[k] >= NU.PEAK_CANDIDATE * m
+        if inside:
             ensure_dense(p, w, h)
             th, qm = peak_of((t, h, w.y, w.Q, p, w.iw, w.tmp, w.auxs, w.dy, w.qv[QV_S], k), 0.0, theta_end,
                              NU.PEAK_TOL)
             m = max(m, peak_value(p, w, t, h, th, k))
             ths[k] = th
         acc[A_QMAX + k] = m
-        rising[k] = 1.0 if q1[k] > qb[k] else 0.0
     rising[N_Q] = 0.0
 
 
