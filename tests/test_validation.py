@@ -115,16 +115,11 @@ def test_csv_matches_the_scenes():
         assert not miss["touch_" + col] and 5e-6 <= miss["min_gap_" + col] <= 5e-5
 
 
-#: Scenes the engine does not meet at its default tolerance, with the measured miss.
-#: graze_tip_clip: the clip is found at the reference's instant (to 1e-7 s), but the peak of a
-#: touch 2e-5 m deep is ill-conditioned: N ~ D^1.5, so dN/N = 1.5 dD/D, i.e. 1.5 l/D ~ 1e5
-#: times the position error relative to the fence length, and the default tolerance leaves
-#: ~1e-7 of l. Measured (benchmarks/tolerance_scan.py): 1.2e-3 at tol 1e-6, 1.7e-4 at 1e-7,
-#: 1e-5 at 1e-8, 6e-8 at 1e-10: it converges with the tolerance, as the conditioning says.
-KNOWN_MISSES = {
-    "graze_tip_clip": "a 2e-5 m tip clip: peak_force 1.2e-3 high at the default tolerance, an "
-                      "ill-conditioned quantity (see KNOWN_MISSES); within 1e-4 at step_factor 0.4",
-}
+#: Scenes the engine does not meet at its default tolerance, with the measured miss. None now:
+#: graze_tip_clip (a 2e-5 m tip clip, N ~ D^1.5 so dN/N = 1.5 dD/D, ill-conditioned in the
+#: positions) was 1.2e-3 off while the approach ran at the cycle's tolerance; the approach is
+#: now integrated APPROACH_TOL tighter (kernel/numerics.py) and it is ~3e-5 off.
+KNOWN_MISSES: dict[str, str] = {}
 
 
 def _param(ref):
@@ -192,8 +187,8 @@ def test_release_inside_a_step_is_located_on_the_methods_flow(scene_id):
 
 
 def test_tip_clip_converges_with_the_tolerance():
-    """The known miss is the conditioning's, not the detection's: at a tighter tolerance the
-    same clip is found at the reference's instant and its peak is within the bound."""
+    """The clip is the conditioning's hard case, not the detection's: at a tighter tolerance the
+    same clip is found at the reference's instant and its peak stays within the bound."""
     ref = next(r for r in ROWS if r["id"] == "graze_tip_clip")
     res = fencesweep.simulate("cycle", **{**make_reference.row_params(ref), "step_factor": 0.4})
     assert not mismatches(res, ref)

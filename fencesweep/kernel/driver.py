@@ -18,10 +18,12 @@ loop. The stops, in one place:
   STOP_MAX_STEPS  numerics.MAX_STEPS attempted steps (w.count[C_STEPS] + w.count[C_REJECTS]);
   STOP_UNDERFLOW  a step shorter than h_floor max(1, t) would be needed.
 
-`ctl` = (method, tol, h_max, dt, h_floor): the method code, its tolerance, the largest step, the
-fixed step of RK4, the step floor. The work tuple `w` has at least y, y1, tmp, K, aux, atol,
+`ctl` = (method, h_max, dt, h_floor): the method code, the largest step, the fixed step of RK4,
+the step floor. The work tuple `w` has at least y, y1, tmp, K, aux, atol and rtol (the
+tolerances, which the scene may change from step to step),
 iw (the scene's integer state) and count (C_STEPS, C_REJECTS, C_ERR2: accepted and rejected
-steps and the sum of the accepted steps' squared error norms).
+steps and the sum of the accepted steps' squared error norms, each times its rtol: the local
+errors relative to the error scales, whatever tolerance each step had).
 """
 from __future__ import annotations
 
@@ -61,7 +63,7 @@ def integrator(step, accept, name: str):
 def integrate(ctl, p, w, t, t_end, t_land, h):
     """Step towards t_end, landing on t_land (module docstring); returns (t, the next step, why
     it stopped). A template: STEP and ACCEPT are the scene's (`integrator`)."""
-    method, tol, h_max, dt, h_floor = ctl
+    method, h_max, dt, h_floor = ctl
     n = w.y.shape[0]
     while not reached(t, t_end):
         if w.count[C_STEPS] + w.count[C_REJECTS] >= NU.MAX_STEPS:
@@ -72,7 +74,7 @@ def integrate(ctl, p, w, t, t_end, t_land, h):
         lands = t < t_land and t + h >= t_land
         if lands:
             h = t_land - t
-        err = STEP(method, t, w.y, h, p, w.iw, w.K, w.tmp, w.y1, w.aux, w.atol, tol, n)
+        err = STEP(method, t, w.y, h, p, w.iw, w.K, w.tmp, w.y1, w.aux, w.atol, w.rtol[0], n)
         if not (err <= 1.0):  # rejected (a NaN error too)
             h = rejected_step(h, err)
             w.count[C_REJECTS] += 1.0
@@ -80,7 +82,8 @@ def integrate(ctl, p, w, t, t_end, t_land, h):
                 return t, h, STOP_UNDERFLOW
             continue
         w.count[C_STEPS] += 1.0
-        w.count[C_ERR2] += err * err
+        e = err * w.rtol[0]  # the local error relative to the error scales at tolerance 1
+        w.count[C_ERR2] += e * e
         h_next = rk.next_step(h, err, NU.SAFETY, NU.FAC_MIN, NU.FAC_MAX)
         t, h, stop = ACCEPT(p, w, t, h, t_land if lands else t + h, err, h_next)
         if stop:

@@ -48,7 +48,7 @@ def hermite_basis(s, h):
     """Weights of y0, h f0, y1, h f1 (the last two scaled by h) in the cubic Hermite
     interpolant at fraction s of an interval of size h: h00 = 2s^3 - 3s^2 + 1,
     h10 = s^3 - 2s^2 + s, h01 = -2s^3 + 3s^2, h11 = s^3 - s^2 (the drive table's interpolant,
-    docs/model.md (15.10))."""
+    docs/model.md (15.11))."""
     s2 = s * s
     s3 = s2 * s
     return 2.0 * s3 - 3.0 * s2 + 1.0, (s3 - 2.0 * s2 + s) * h, -2.0 * s3 + 3.0 * s2, (s3 - s2) * h

@@ -33,7 +33,7 @@ IW_RIGID, IW_FREE = 0, 1
 R_PEAK, R_DMAX, R_STATUS, R_TP, R_REBOUND, N_R = 0, 1, 2, 3, 4, 5
 
 #: an impact's work arrays (allocated by impact_kernel)
-Work = namedtuple("Work", ("y", "y1", "tmp", "dy", "K", "Q", "aux", "iw", "atol", "count", "acc"))
+Work = namedtuple("Work", ("y", "y1", "tmp", "dy", "K", "Q", "aux", "iw", "atol", "rtol", "count", "acc"))
 
 
 @kernel(inline=True)
@@ -166,7 +166,7 @@ def write_results(w, t, speed, out):
 
 @kernel(inline=True)
 def effective_mass(p, rigid):
-    """The mass of the impact's time scale [kg] (docs/model.md (15.11)): m1 against a rigid
+    """The mass of the impact's time scale [kg] (docs/model.md (15.12)): m1 against a rigid
     fence, (1/m1 + R^2/I2)^-1 against a flexible or free one."""
     return p[Lp.M1] if rigid else 1.0 / (1.0 / p[Lp.M1] + p[Lp.R] ** 2 / p[Lp.I2])
 
@@ -177,7 +177,8 @@ def impact_kernel(p, rigid, free, speed, out):
     at the tolerance p[TOL]); writes IMPACT_RESULTS into out."""
     n = N_STATE
     w = Work(np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros((rk.N_STAGES, n)), np.zeros((4, n)),
-             np.zeros(1), np.array([1 if rigid else 0, 1 if free else 0]), np.empty(n), np.zeros(driver.N_COUNT),
+             np.zeros(1), np.array([1 if rigid else 0, 1 if free else 0]), np.empty(n), np.full(1, p[Lp.TOL]),
+             np.zeros(driver.N_COUNT),
              np.zeros(N_R))
     tp = pulse_time(p[Lp.LAW], effective_mass(p, rigid), p[Lp.KC], speed)
     error_scales(p, w, speed, tp)
@@ -186,7 +187,7 @@ def impact_kernel(p, rigid, free, speed, out):
     w.y[1] = speed
     impact_rhs(0.0, w.y, p, w.iw, w.K[0], w.aux)
     w.acc[R_PEAK] = w.aux[0]  # the linear law jumps to b w at contact
-    ctl = (rk.METHOD_DOPRI5, p[Lp.TOL], math.inf, 0.0, NU.H_MIN * tp)
+    ctl = (rk.METHOD_DOPRI5, math.inf, 0.0, NU.H_MIN * tp)
     t, h, why = loop(ctl, p, w, 0.0, math.inf, math.inf, 1e-3 * tp)
     if why == driver.STOP_UNDERFLOW:
         w.acc[R_STATUS] = Rs.ST_UNDERFLOW

@@ -35,7 +35,7 @@ from fencesweep.model.scenes.cycle.layout import (A_EXITED, A_QMAX, A_STATUS, A_
                                                   N_ACC, N_AUX, N_IW, N_Q, N_QV, N_STATE, QV_0, Work)
 from fencesweep.model.scenes.cycle.peaks import quantities_from_aux
 from fencesweep.model.scenes.cycle.rhs import deflection, fence_state, rhs, step
-from fencesweep.model.scenes.cycle.run import run
+from fencesweep.model.scenes.cycle.run import run, set_tolerance
 from fencesweep.model.scenes.cycle.slots import classify, in_contact
 
 
@@ -64,6 +64,7 @@ def begin_cycle(p, w):
         w.acc[A_QMAX + k] = w.qv[QV_0, k]
     for i in range(N_Q + 1):
         w.rising[i] = 1.0
+    set_tolerance(p, w)
     w.row[0] = record(w.traj, w.row[0], 0.0, w.y, p, w.iw, w.aux)
 
 
@@ -106,7 +107,7 @@ def rest(p, w, t, t_end, o):
     the cycle's error control (docs/model.md §8: only the fence's linear ODE remains). Its steps are
     added to the cycle's n_steps and n_rejected; a rest that cannot be stepped fails the cycle."""
     method = int(p[Lp.METHOD])
-    ctl = (method, p[Lp.TOL], p[Lp.H_MAX], p[Lp.DT], NU.H_MIN)
+    ctl = (method, p[Lp.H_MAX], p[Lp.DT], NU.H_MIN)
     h = p[Lp.DT] if method == rk.METHOD_RK4 else 0.1 * p[Lp.H_MAX]
     steps = w.count[driver.C_STEPS]
     rejects = w.count[driver.C_REJECTS]
@@ -172,7 +173,8 @@ def run_cycles(p, loads, period, out, traj, row_starts):
     w = Work(np.zeros(n), np.empty(n), np.empty(n), np.empty(n), np.empty((rk.N_STAGES, n)), np.zeros((8, n)),
              np.zeros(1, np.int64), np.zeros(N_AUX), np.zeros(N_AUX), np.zeros(N_IW, np.int64),
              np.zeros(N_SLOTS, np.int64), np.zeros(N_SLOTS, np.int64), np.empty(N_SLOTS), np.empty(N_SLOTS),
-             np.empty(N_SLOTS), np.empty(N_SLOTS), np.zeros((N_QV, N_Q)), np.empty(N_ACC), np.empty(n),
+             np.empty(N_SLOTS), np.empty(N_SLOTS), np.zeros((N_QV, N_Q)), np.empty(N_ACC), np.empty(n), np.empty(n),
+             np.empty(1),
              np.ones(N_Q + 1), np.empty((rk.N_STAGES, n)), np.empty(n), np.zeros(driver.N_COUNT), traj,
              np.zeros(1, np.int64), p.copy())
     n_cycles = loads.shape[0]

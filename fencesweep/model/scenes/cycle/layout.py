@@ -74,7 +74,9 @@ Work = namedtuple("Work", (
     "r1",      # (N_SLOTS,) gap rates at its end
     "qv",      # (N_QV, N_Q) tracked quantities (rows QV_*)
     "acc",     # (N_ACC,) the run's accumulators (A_*)
-    "atol",    # (N_STATE,) absolute tolerances (books.error_scales)
+    "atol",    # (N_STATE,) absolute tolerances of the next step (run.set_tolerance)
+    "atol0",   # (N_STATE,) the run's absolute tolerances (books.error_scales)
+    "rtol",    # (1,) the relative tolerance of the next step
     "rising",  # (N_Q + 1,) per quantity: rising at the step's start; last: judge it anew
     "Ks",      # (N_STAGES, N_STATE) a step off the main one (to a peak, to a release)
     "ys",      # (N_STATE,) that step's end

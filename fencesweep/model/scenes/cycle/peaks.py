@@ -89,7 +89,8 @@ def hermite_max(q0, d0, q1, d1):
     """The largest interior maximum on (0, 1) of the cubic with q(0) = q0, q'(0) = d0, q(1) = q1,
     q'(1) = d1 (derivatives in the unit of the interval), -inf when it has none. With the
     values and rates of a quantity at a step's ends, it says whether the step can hold a
-    maximum above them, and about how high: the cubic is the quantity to O(h^4)."""
+    maximum above them, and about how high: the cubic is the quantity to O(h^4) (docs/model.md
+    (15.9))."""
     c2 = 3.0 * (q1 - q0) - 2.0 * d0 - d1
     c3 = 2.0 * (q0 - q1) + d0 + d1
     best = -math.inf

@@ -24,11 +24,11 @@ from fencesweep.model.contact import pulse_time
 from fencesweep.model.scenes.contacts import N_SLOTS
 from fencesweep.model.scenes.cycle.books import after_step, at_t_c, count_stage_time, record, time_out
 from fencesweep.model.scenes.cycle.events import event_state, find_event
-from fencesweep.model.scenes.cycle.layout import (A_DMAX, A_EXITED, A_QMAX, A_STATUS, AX_DMAX, N_Q, N_STATE, QV_0,
+from fencesweep.model.scenes.cycle.layout import (IW_LOAD, A_DMAX, A_EXITED, A_QMAX, A_STATUS, AX_DMAX, N_Q, N_STATE, QV_0,
                                                   QV_1)
 from fencesweep.model.scenes.cycle.peaks import quantities, quantities_from_aux, record_peaks, track_maxima
 from fencesweep.model.scenes.cycle.rhs import rhs, step
-from fencesweep.model.scenes.cycle.slots import classify, classify_after_rhs, new_push
+from fencesweep.model.scenes.cycle.slots import classify, classify_after_rhs, in_contact, new_push
 
 
 @kernel(inline=True)
@@ -43,7 +43,20 @@ def all_finite(y):
 def onset_step(p, w, h_next):
     """The step after a contact onset: at most numerics.ONSET_STEP of the load's pulse time at the
     fastest closing speed (contact.pulse_time; docs/model.md (15.8))."""
-    return min(h_next, NU.ONSET_STEP * pulse_time(p[Lp.LAW], p[Lp.M1], p[Lp.KC], w.atol[3] / p[Lp.TOL]))
+    return min(h_next, NU.ONSET_STEP * pulse_time(p[Lp.LAW], p[Lp.M1], p[Lp.KC], w.atol0[3] / p[Lp.TOL]))
+
+
+@kernel(inline=True)
+def set_tolerance(p, w):
+    """The tolerances of the next step (docs/model.md (15.14); numerics.APPROACH_TOL, FREE_TOL
+    say why): the run's, times APPROACH_TOL while the load is on the belt and touches nothing,
+    times FREE_TOL for a free fence."""
+    s = NU.APPROACH_TOL if w.iw[IW_LOAD] != 0 and not in_contact(w.iw) else 1.0
+    if int(p[Lp.DRIVE]) == Lp.DRIVE_FREE:
+        s = min(s, NU.FREE_TOL)
+    for i in range(N_STATE):
+        w.atol[i] = s * w.atol0[i]
+    w.rtol[0] = s * p[Lp.TOL]
 
 
 @kernel(inline=True)
@@ -72,6 +85,7 @@ def move_on(p, w, t1, kind, edge1, h_next):
         w.r0[i] = w.r1[i]
     for i in range(N_STATE):
         w.y[i] = w.y1[i]
+    set_tolerance(p, w)
     return h_next
 
 
@@ -123,7 +137,7 @@ def run(p, w):
     stream.begin_cycle set."""
     tc = p[Lp.TC]
     method = int(p[Lp.METHOD])
-    ctl = (method, p[Lp.TOL], p[Lp.H_MAX], p[Lp.DT], NU.H_MIN)
+    ctl = (method, p[Lp.H_MAX], p[Lp.DT], NU.H_MIN)
     t = 0.0
     h = p[Lp.DT] if method == rk.METHOD_RK4 else 0.1 * p[Lp.H_MAX]
     while True:

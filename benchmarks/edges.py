@@ -1,0 +1,180 @@
+"""The last two edges (issue "Trust", item 2): the error of every validation scene at the default
+setting and the warm cost of a cycle, an earlier revision and this tree side by side in one run.
+
+    python benchmarks/edges.py [--before 536da18] [--rounds 5]   -> prints, writes results/edges.md
+
+For each tree (the earlier one exported with `git archive`, this one the working tree), in a
+process of its own with a warm Numba cache of its own:
+  * errors: every scene of benchmarks/validation_scenes.yaml run at the default setting with the
+    reference row's fully resolved parameters, compared with benchmarks/reference_results.csv
+    (SciPy DOP853 at rtol 1e-10, benchmarks/reference.py: independent of the engine) by the
+    validation's floored relative errors (tests/test_validation.py's metric): peak_force,
+    deflection_max, t_exit, plus the outcome and the touches;
+  * steps: the mean integrator steps of a cycle on 60 scenes of the main job (sweeps/b2k2.yaml:
+    B2 x K2 x case, a seeded sample) - deterministic;
+  * warm time: CPU ms per cycle on the same 60 scenes, 5 passes a round; the rounds of the two
+    trees alternate (before, this tree, before, ...) so that the machine's drift hits both.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+BEFORE = "536da18"
+
+WORKER = r"""
+import json, math, sys, time
+import numpy as np
+import pandas as pd
+sys.path.insert(0, BENCH)
+import make_reference
+import fencesweep
+
+def errors(res, ref):
+    scale = {"peak_force": max(abs(ref["peak_force"]), 0.1 * ref["freefall_force"]),
+             "deflection_max": max(abs(ref["deflection_max"]), 0.01),
+             "t_exit": max(abs(ref["t_exit"]), 1e-3)}
+    e = {k: abs(res[k] - ref[k]) / s for k, s in scale.items()}
+    e = {k: (v if math.isfinite(v) else 1.0) for k, v in e.items()}
+    e["outcome"] = res["outcome"] == ref["outcome"]
+    fence = bool(ref["touch_fence"] or ref["touch_tip"])
+    e["touch"] = (math.isfinite(res["t_first_contact"]) == fence
+                  and (res["peak_rail_force"] > 1e-9 * res["freefall_force"]) == bool(ref["touch_rail"]))
+    return e
+
+what = sys.argv[1]
+if what == "errors":
+    rows = pd.read_csv(make_reference.OUT).to_dict("records")
+    out = {}
+    for ref in rows:
+        res = fencesweep.simulate("cycle", **make_reference.row_params(ref))
+        out[ref["id"]] = errors(res, ref)
+    print(json.dumps(out))
+    sys.exit()
+
+b2, k2 = np.linspace(0, 200, 81), np.linspace(100, 2100, 81)
+idx = np.random.default_rng(20261123).choice(81 * 81 * 2, 60, replace=False)
+sample = [(("small_far", "long_near")[i // 6561], float(b2[i % 6561 // 81]), float(k2[i % 81]))
+          for i in idx]
+if what == "steps":
+    n = [fencesweep.simulate("cycle", case=c, B2=b, K2=k)["n_steps"] for c, b, k in sample]
+    print(json.dumps(float(np.mean(n))))
+    sys.exit()
+
+from fencesweep.model.params import resolve
+from fencesweep.model.prepare import prepare
+from fencesweep.model.scenes.stream import run_cycles
+from fencesweep.model import layout as Lp
+from fencesweep.model.results import N_STREAM_CYCLE_RESULTS
+
+def make(p):
+    loads = np.ascontiguousarray(p[list(Lp.LOAD_SLOTS)][None, :])
+    out = np.empty((1, N_STREAM_CYCLE_RESULTS)); traj = np.empty((0, 19))
+    st = np.empty(2, np.int64); tc = float(p[Lp.TC])
+    return lambda: run_cycles(p, loads, tc, out, traj, st)
+
+fs = [make(prepare(resolve("cycle", c, B2=b, K2=k))) for c, b, k in sample]
+for f in fs:
+    f()
+t = time.process_time()
+for _ in range(5):
+    for f in fs:
+        f()
+print(json.dumps((time.process_time() - t) / (5 * len(fs)) * 1e3))
+"""
+
+
+def export(rev: str, where: Path) -> Path:
+    where.mkdir(parents=True)
+    arch = subprocess.run(["git", "archive", rev], cwd=ROOT, capture_output=True, check=True)
+    subprocess.run(["tar", "-x", "-C", str(where)], input=arch.stdout, check=True)
+    return where
+
+
+def run(tree: Path, cache: Path, what: str):
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("NUMBA_", "PYTHONPATH"))}
+    env.update(NUMBA_CACHE_DIR=str(cache), PYTHONPATH=str(tree))
+    code = f"BENCH = {str(ROOT / 'benchmarks')!r}\n" + WORKER
+    r = subprocess.run([sys.executable, "-c", code, what], env=env, capture_output=True,
+                       text=True, cwd=tree)
+    if r.returncode:
+        raise SystemExit(f"{tree} {what} failed:\n{r.stderr[-3000:]}")
+    return json.loads(r.stdout.strip().splitlines()[-1])
+
+
+GROUPS = (("free_harmonic", "free fences, harmonic profile, t_c 1.0-1.2 s"),
+          ("clip_tip", "tip clips (the region of graze_tip_clip)"),
+          ("graze_tip_clip", "graze_tip_clip"))
+
+
+def table(errs: dict[str, dict], names: list[str]) -> list[str]:
+    keys = ("peak_force", "deflection_max", "t_exit")
+    lines = ["| scenes | n | " + " | ".join(f"max error {k} ({n})" for k in keys for n in names)
+             + " | outcomes and touches right |",
+             "|---|---:|" + "---:|" * (len(keys) * len(names)) + "---|"]
+    first = errs[names[0]]
+    groups = [(p, d) for p, d in GROUPS] + [("", "all validation scenes")]
+    for prefix, desc in groups:
+        ids = [i for i in first if i.startswith(prefix)]
+        cells = []
+        for k in keys:
+            for n in names:
+                cells.append(f"{max(errs[n][i][k] for i in ids):.1e}")
+        right = ", ".join(f"{n}: {sum(errs[n][i]['outcome'] and errs[n][i]['touch'] for i in ids)}"
+                          f"/{len(ids)}" for n in names)
+        lines.append(f"| {desc} | {len(ids)} | " + " | ".join(cells) + f" | {right} |")
+    return lines
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--before", default=BEFORE)
+    ap.add_argument("--rounds", type=int, default=5)
+    ap.add_argument("--out", default=str(ROOT / "results" / "edges.md"))
+    a = ap.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        trees = {a.before: export(a.before, Path(tmp) / "before"), "this tree": ROOT}
+        caches = {n: Path(tmp) / f"cache-{i}" for i, n in enumerate(trees)}
+        errs, steps, times = {}, {}, {n: [] for n in trees}
+        for n, t in trees.items():
+            errs[n] = run(t, caches[n], "errors")
+            steps[n] = run(t, caches[n], "steps")
+            print(f"{n}: errors of {len(errs[n])} scenes, {steps[n]:.1f} steps a cycle", flush=True)
+        for r in range(a.rounds):
+            for n, t in trees.items():
+                times[n].append(run(t, caches[n], "time"))
+            print(f"round {r + 1}: " + ", ".join(f"{n} {times[n][-1]:.3f} ms" for n in trees),
+                  flush=True)
+    names = list(trees)
+    med = {n: statistics.median(times[n]) for n in names}
+    worst = {n: max(errs[n], key=lambda i: max(errs[n][i][k] for k in ("peak_force", "deflection_max", "t_exit")))
+             for n in names}
+    lines = ["# The last two edges: errors at the default setting and the warm cost, before and after",
+             "", f"Regenerate: `python benchmarks/edges.py --before {a.before} --rounds {a.rounds}` "
+             "(what is measured: its docstring). Errors are floored relative errors against the "
+             "independent reference (benchmarks/reference_results.csv).", ""]
+    lines += table(errs, names)
+    lines += ["", "Worst scene: " + "; ".join(
+        f"{n}: {worst[n]} ({max(errs[n][worst[n]][k] for k in ('peak_force', 'deflection_max', 't_exit')):.1e})"
+        for n in names), "",
+        "| | " + " | ".join(names) + " | change |", "|---|---:|---:|---:|",
+        f"| mean steps a cycle (b2k2 sample of 60) | {steps[names[0]]:.1f} | {steps[names[1]]:.1f} | "
+        f"{steps[names[1]] / steps[names[0]] - 1:+.1%} |",
+        f"| warm CPU ms a cycle, median of {a.rounds} rounds | {med[names[0]]:.3f} | "
+        f"{med[names[1]]:.3f} | {med[names[1]] / med[names[0]] - 1:+.1%} |",
+        "", "Rounds (ms a cycle): " + "; ".join(f"{n}: " + ", ".join(f"{x:.3f}" for x in times[n])
+                                               for n in names), ""]
+    text = "\n".join(lines)
+    print(text)
+    Path(a.out).write_text(text)
+
+
+if __name__ == "__main__":
+    main()
