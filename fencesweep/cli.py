@@ -18,7 +18,7 @@ from pathlib import Path
 from fencesweep import __version__
 from fencesweep.model import params as P
 from fencesweep.study import api
-from fencesweep.errors import UsageError
+from fencesweep.errors import UsageError, WriteError
 
 __all__ = ["main", "build_parser", "UsageError"]
 
@@ -152,14 +152,20 @@ def add_grid_parser(sub) -> argparse.ArgumentParser:
     g.add_argument("--backend", choices=("loky", "dask"), default="loky",
                    help="loky: processes on this machine; dask: a Dask cluster (needs --scheduler)")
     g.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler, e.g. tcp://HOST:8786")
-    g.add_argument("--quiet", action="store_true", help="no progress bar and no summary")
+    g.add_argument("--wait", action="store_true",
+                   help="if another run is writing the same output, wait for it (default: refuse at once)")
+    g.add_argument("--quiet", action="store_true", help="no progress bar and no summary (warnings are still shown)")
     g.set_defaults(func=cmd_grid)
     return g
 
 
 def _say(args: argparse.Namespace):
-    """The notes and summaries on stderr (nothing with --quiet)."""
-    return (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
+    """The notes and summaries on stderr (with --quiet only the warnings)."""
+    def say(msg: str) -> None:
+        if not args.quiet or msg.startswith("warning"):
+            print(msg, file=sys.stderr)
+
+    return say
 
 
 def cmd_grid(args: argparse.Namespace) -> int:
@@ -179,10 +185,20 @@ def cmd_grid(args: argparse.Namespace) -> int:
         return 0
     try:
         run = api.run_grid(args.spec, out=args.out, jobs=args.jobs, resume=not args.no_resume, backend=args.backend,
-                           scheduler=args.scheduler, progress=not args.quiet, overwrite=args.overwrite, log=say)
+                           scheduler=args.scheduler, progress=not args.quiet, overwrite=args.overwrite,
+                           wait=args.wait, log=say)
     except api.SweepInterrupted as exc:
         print(f"fencesweep: {exc.saved_text}; run the same command again to finish", file=sys.stderr)
         return 130
+    except WriteError as exc:  # a full disk: what was kept, and what to do
+        print(f"fencesweep: error: {exc}", file=sys.stderr)
+        return 1
+    _grid_summary(run, say)
+    return 0
+
+
+def _grid_summary(run: dict, say) -> None:
+    """What a finished sweep wrote, and its warnings."""
     rate = run["scenes"] / run["seconds"] if run["seconds"] > 0 else math.inf
     where = "Dask" if run["jobs"] is None else f"{run['jobs']} job{'s' if run['jobs'] != 1 else ''}"
     say(f"wrote {run['out']}: {run['scenes']} scenes ({run['model_runs']} model runs; {run['chunks_computed']} chunks "
@@ -191,7 +207,6 @@ def cmd_grid(args: argparse.Namespace) -> int:
         say(f"warning: {run['failed_runs']} scenes raised in the engine; their status is 'failed: exception ...'")
     if run["points"] is not None:
         say(_points_line(run["points"]))
-    return 0
 
 
 def _points_line(pts: dict) -> str:
