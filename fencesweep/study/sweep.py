@@ -21,9 +21,11 @@ run_sweep orchestrates the steps, each in its own module:
    On Linux the local workers are forked from this process once it has loaded the
    compiled kernels (which takes about as long as planning, so a forked helper plans
    meanwhile): they start at once and load nothing. Elsewhere they are loky processes.
-4. assemble.py: the table is assembled block by block from the parameter blocks and the
-   chunks (rows in scene order) into one Parquet file, atomically; then the work directory
-   is removed.
+4. verify.py: a sample of the runs (the extremes first, then random) is run again at a 10x
+   tighter tolerance and compared with the chunks' results, the table's values (verification).
+5. assemble.py: the table is assembled block by block from the parameter blocks and the
+   chunks (rows in scene order) into one Parquet file, atomically, the verification's record
+   in its metadata; then the work directory is removed.
 
 The whole run holds the output's lock (lock.py: one writer per output), taken once the
 output's directory is known to be writable and before anything is made or removed. A file that
@@ -43,6 +45,7 @@ from pathlib import Path
 from typing import Callable
 
 from fencesweep.study import compute, lock, output, runs
+from fencesweep.study import verify as V
 from fencesweep.study import plan as PL
 from fencesweep.study import spec as S
 from fencesweep.study.assemble import assemble
@@ -63,8 +66,9 @@ class Outcome:
     failed_runs: int = 0
     jobs: int | None = None  # local processes used (None: Dask)
     #: where the time went: seconds of this process's phases (plan, load, sample, compute,
-    #: assemble) and, summed over the chunks, of the workers' runs and chunk writes
+    #: verify, assemble) and, summed over the chunks, of the workers' runs and chunk writes
     timings: dict = field(default_factory=dict)
+    verify: dict | None = None  # the verification's record (verify.py; None: not verified)
 
 
 @dataclass
@@ -93,7 +97,7 @@ def run_sweep(spec: S.Spec, out: str | Path | None = None, jobs: int | None = No
               resume: bool = True, backend: str = "loky", scheduler: str | None = None,
               progress: bool = False, simulate: Callable | None = None, plan: PL.Plan | None = None,
               log: Callable[[str], None] | None = None, serial_below: float | None = None,
-              overwrite: bool = False, wait: bool = False) -> Outcome:
+              overwrite: bool = False, verify: bool | int | None = None, wait: bool = False) -> Outcome:
     """Run a sweep and write its table. `simulate(vals, trajectory=False) -> (results, None)`
     defaults to fencesweep.model.simulate.simulate_resolved (tests pass a fake). A local sweep whose
     remaining work is estimated below `serial_below` seconds (default runs.SERIAL_BELOW) runs
@@ -102,8 +106,9 @@ def run_sweep(spec: S.Spec, out: str | Path | None = None, jobs: int | None = No
     directory must be writable (output.check_writable) and its lock free (lock.one_writer:
     another run writing `out` raises UsageError, or with `wait` is waited for). Without
     `overwrite`, another spec's table or unfinished run at `out` stops the sweep before it
-    starts (output.check_output). A file that cannot be written (a full disk) raises
-    WriteError; the chunks finished are kept for the next run."""
+    starts (output.check_output). `verify`: None or True, the default sample is re-run at
+    tol / 10 (verify.py); N, N runs; False, none. A file that cannot be written (a full disk)
+    raises WriteError; the chunks finished are kept for the next run."""
     t0 = time.perf_counter()
     if not isinstance(spec, S.Spec):
         raise TypeError(f"run_sweep takes a spec.Spec (specfile.load reads one from YAML), not {spec!r}")
@@ -122,11 +127,11 @@ def run_sweep(spec: S.Spec, out: str | Path | None = None, jobs: int | None = No
         made = output.open_work(root, run.work, resume, run.log)
         if plan is None:
             plan = _plan(run, made)
-        return _run(run, plan, root, t0)
+        return _run(run, plan, root, verify, t0)
 
 
-def _run(run: _Run, plan: PL.Plan, root: Path, t0: float) -> Outcome:
-    """Size the chunks, compute the missing ones, assemble the table, remove the work directory."""
+def _run(run: _Run, plan: PL.Plan, root: Path, verify: bool | int | None, t0: float) -> Outcome:
+    """Size the chunks, compute the missing ones, verify, assemble the table, remove the work directory."""
     run.per_run = _size_chunks(run, plan)
     output.write_state(run.work, plan)
     done = output.chunks_done(plan, run.work)
@@ -135,12 +140,17 @@ def _run(run: _Run, plan: PL.Plan, root: Path, t0: float) -> Outcome:
         run.log(f"resuming: {len(done)} of {plan.n_chunks} chunks already in {run.work}")
     if pending:
         _compute(run, plan, pending, done)
+    record = None
+    if verify is not False:
+        record, run.timings["verify"] = V.run_verification(
+            plan, run.work, None if verify is None or verify is True else int(verify), run.jobs, run.local,
+            run.scheduler, run.simulate, run.serial_below, run.per_run)
     t = time.perf_counter()
-    failed = assemble(plan, run.work, run.out)
+    failed = assemble(plan, run.work, run.out, {"verify": record} if record is not None else None)
     run.timings["assemble"] = time.perf_counter() - t
     shutil.rmtree(root)
     return Outcome(run.out, plan.n_scenes - plan.skipped, plan.n_models, plan.n_chunks, len(pending), len(done),
-                   time.perf_counter() - t0, failed, run.jobs if run.local else None, run.timings)
+                   time.perf_counter() - t0, failed, run.jobs if run.local else None, run.timings, record)
 
 
 def _plan(run: _Run, made: bool) -> PL.Plan:
