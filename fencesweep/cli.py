@@ -13,12 +13,13 @@ import gc
 import json
 import math
 import sys
+import warnings
 from pathlib import Path
 
 from fencesweep import __version__
 from fencesweep.model import params as P
 from fencesweep.study import api
-from fencesweep.errors import UsageError
+from fencesweep.errors import UsageError, WriteError
 
 __all__ = ["main", "build_parser", "UsageError"]
 
@@ -152,14 +153,34 @@ def add_grid_parser(sub) -> argparse.ArgumentParser:
     g.add_argument("--backend", choices=("loky", "dask"), default="loky",
                    help="loky: processes on this machine; dask: a Dask cluster (needs --scheduler)")
     g.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler, e.g. tcp://HOST:8786")
-    g.add_argument("--quiet", action="store_true", help="no progress bar and no summary")
+    check = g.add_mutually_exclusive_group()
+    check.add_argument("--verify", type=int, default=None, metavar="N",
+                       help="re-run N of the runs at a 10x tighter tolerance and record how the table differs "
+                            "(default: max(16, 1%%) of them, the extremes first, at most ~5%% of the run's cost)")
+    check.add_argument("--no-verify", action="store_true", help="no verification")
+    g.add_argument("--wait", action="store_true",
+                   help="if another run is writing the same output, wait for it (default: refuse at once)")
+    g.add_argument("--quiet", action="store_true", help="no progress bar and no summary (warnings are still shown)")
     g.set_defaults(func=cmd_grid)
     return g
 
 
 def _say(args: argparse.Namespace):
-    """The notes and summaries on stderr (nothing with --quiet)."""
-    return (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
+    """The notes and summaries on stderr (with --quiet only the warnings)."""
+    def say(msg: str) -> None:
+        if not args.quiet or msg.startswith("warning"):
+            print(msg, file=sys.stderr)
+
+    return say
+
+
+def _verify_arg(args: argparse.Namespace):
+    """--verify N / --no-verify as the API's verify: N, False or None (the default sample)."""
+    if args.no_verify:
+        return False
+    if args.verify is not None and args.verify < 1:
+        raise UsageError(f"--verify {args.verify} is not allowed: --verify N re-runs N >= 1 runs (--no-verify: none)")
+    return args.verify
 
 
 def cmd_grid(args: argparse.Namespace) -> int:
@@ -172,26 +193,50 @@ def cmd_grid(args: argparse.Namespace) -> int:
     if args.scheduler and args.backend != "dask":
         raise UsageError("--scheduler is only used with --backend dask")
     say = _say(args)
+    verify = _verify_arg(args)
     if args.dry_run:
         est = api.estimate(args.spec, out=args.out, jobs=args.jobs, resume=not args.no_resume, backend=args.backend,
-                           overwrite=args.overwrite, progress=not args.quiet, log=say)
+                           overwrite=args.overwrite, progress=not args.quiet, verify=verify, log=say)
         print("\n".join(est.lines()))
         return 0
     try:
-        run = api.run_grid(args.spec, out=args.out, jobs=args.jobs, resume=not args.no_resume, backend=args.backend,
-                           scheduler=args.scheduler, progress=not args.quiet, overwrite=args.overwrite, log=say)
+        with warnings.catch_warnings():  # a failed verification's warning: printed below, as lines
+            warnings.simplefilter("ignore", verify_warning())
+            run = api.run_grid(args.spec, out=args.out, jobs=args.jobs, resume=not args.no_resume,
+                               backend=args.backend, scheduler=args.scheduler, progress=not args.quiet,
+                               overwrite=args.overwrite, verify=verify, wait=args.wait, log=say)
     except api.SweepInterrupted as exc:
         print(f"fencesweep: {exc.saved_text}; run the same command again to finish", file=sys.stderr)
         return 130
+    except WriteError as exc:  # a full disk: what was kept, and what to do
+        print(f"fencesweep: error: {exc}", file=sys.stderr)
+        return 1
+    _grid_summary(run, say)
+    return 0
+
+
+def verify_warning() -> type:
+    from fencesweep.study.verify import VerificationWarning
+
+    return VerificationWarning
+
+
+def _grid_summary(run: dict, say) -> None:
+    """What a finished sweep wrote, its verification and its warnings."""
+    from fencesweep.study import verify as V
+
     rate = run["scenes"] / run["seconds"] if run["seconds"] > 0 else math.inf
     where = "Dask" if run["jobs"] is None else f"{run['jobs']} job{'s' if run['jobs'] != 1 else ''}"
     say(f"wrote {run['out']}: {run['scenes']} scenes ({run['model_runs']} model runs; {run['chunks_computed']} chunks "
         f"computed, {run['chunks_reused']} reused) in {run['seconds']:.1f} s, {rate:.1f} scenes/s on {where}")
+    if run["verify"] is not None:
+        say(V.summary_line(run["verify"]))
+        for line in V.warning_lines(run["verify"]):
+            say(line)
     if run["failed_runs"]:
         say(f"warning: {run['failed_runs']} scenes raised in the engine; their status is 'failed: exception ...'")
     if run["points"] is not None:
         say(_points_line(run["points"]))
-    return 0
 
 
 def _points_line(pts: dict) -> str:

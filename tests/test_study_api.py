@@ -12,7 +12,7 @@ import fencesweep
 from fencesweep import cli, resources
 from fencesweep.errors import UsageError
 from fencesweep.model import simulate as model_simulate
-from fencesweep.study import api, estimate
+from fencesweep.study import api, estimate, verify_sample
 from fencesweep.study import spec as S
 
 #: 3 x 3 B2 x K2 over both named cases: 18 cycles of the real engine
@@ -101,19 +101,22 @@ def test_estimate_is_the_dry_run_and_writes_nothing(tmp_path, capsys):
     assert est.chunk_size >= 1 and est.n_chunks * est.chunk_size >= 18 and est.chunks_done == 0
     assert est.per_run > 0 and est.timed_runs >= 1 and est.warm_up >= 0 and est.runs_left == 18
     assert est.jobs == 1  # a few milliseconds of work: a real run would not start workers
-    assert est.seconds == pytest.approx(est.per_run * 18) and est.stop is None and est.notes == []
+    assert est.verify_runs == 16 and est.verify_seconds == pytest.approx(16 * verify_sample.RERUN_COST * est.per_run)
+    assert est.seconds == pytest.approx(est.per_run * 18 + est.verify_seconds) and est.stop is None
+    assert est.notes == []
     assert sorted(p.name for p in tmp_path.iterdir()) == ["spec.yaml"]  # nothing written
     assert cli.main(["grid", str(path), "--out", str(out), "--dry-run", "--jobs", "2"]) == 0
     printed = capsys.readouterr().out.splitlines()
     assert printed[:2] == est.lines()[:2] == [f"{path}: scene cycle, 18 scenes (2 cases x B2 3 x K2 3) -> {out}",
                                               "  distinct model runs: 18"]
-    assert printed[-1].startswith("  estimated time on 1 job: ") and printed[-1].endswith(" for 18 runs")
+    assert printed[-1].startswith("  estimated time on 1 job: ") and printed[-1].endswith(" for 18 runs and 16 re-runs")
+    assert printed[-2].startswith("  verification: up to 16 of the 18 runs re-run at tol/10")
     # another spec's table at the output: a real run would stop, and the estimate says why
     fencesweep.grid(write(tmp_path, SPEC.replace("B2: [15, 72, 140]", "B2: [15, 72]"), "other.yaml"), out=out, jobs=1)
     est = fencesweep.estimate(path, out=out, backend="dask")
     assert "holds the results of another spec" in est.stop and est.jobs is None
     assert est.notes == [f"a real run would stop before it starts: {est.stop}"]
-    assert est.lines()[-1].endswith("of work for 18 runs, divided by the cluster's workers")
+    assert est.lines()[-1].endswith("of work for 18 runs and 16 re-runs, divided by the cluster's workers")
     assert fencesweep.estimate(path, out=out, overwrite=True).stop is None
 
 
@@ -136,7 +139,9 @@ def test_bad_input_raises_a_clear_error_and_writes_nothing(tmp_path, spec, error
     assert all(w in str(exc.value) for w in words), str(exc.value)
     if error is S.SpecError:
         assert isinstance(exc.value, fencesweep.ParameterError)
-    assert list(tmp_path.iterdir()) == []  # no table, no work directory
+    # no table, no work directory: only the empty lock file of a run that got as far as planning
+    # (lock.py: a lock file is never removed, as a run waiting on it would then hold a lock of its own)
+    assert [p.name for p in tmp_path.iterdir()] in ([], ["t.parquet.lock"])
 
 
 @pytest.mark.parametrize("call, words", [

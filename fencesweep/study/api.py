@@ -24,16 +24,37 @@ import os
 from pathlib import Path
 from typing import Any, Callable
 
-from fencesweep.errors import UsageError
+from fencesweep.errors import UsageError, WriteError
 from fencesweep.study import envelope as E
-from fencesweep.study import output, specfile, store, sweep
+from fencesweep.study import lock, output, specfile, store, sweep
+from fencesweep.study import verify as V
 from fencesweep.study import spec as S
 from fencesweep.study.estimate import Estimate
 from fencesweep.study.estimate import estimate as _estimate
 
-__all__ = ["grid", "run_grid", "points", "estimate", "design", "sensitivity", "load_spec", "SweepInterrupted"]
+__all__ = ["grid", "run_grid", "points", "estimate", "design", "sensitivity", "load_spec", "SweepInterrupted",
+           "SweepWriteError"]
 
 BACKENDS = ("loky", "dask")
+
+
+class SweepWriteError(WriteError):
+    """A file of the sweep could not be written (`errno` ENOSPC: the disk is full): names the file
+    and the `saved` chunks (of `total`, None: not known) kept in `work` for the next run."""
+
+    def __init__(self, exc: WriteError, work: Path, saved: int, total: int | None):
+        super().__init__(exc.errno, exc.strerror, exc.filename)
+        self.work, self.saved, self.total = work, saved, total
+
+    def __reduce__(self):
+        return (type(self), (WriteError(self.errno, self.strerror, self.filename), self.work, self.saved, self.total))
+
+    def __str__(self) -> str:
+        kept = (f"the {self.saved} finished chunk{'s' if self.saved != 1 else ''} are kept in {self.work}"
+                if self.saved else "no chunk was finished yet")
+        kept = kept.replace("chunk are", "chunk is")
+        todo = "free space" if self.no_space else "make it writable"
+        return f"{super().__str__()}; {kept} — {todo} and run the same command again"
 
 
 class SweepInterrupted(KeyboardInterrupt):
@@ -109,18 +130,20 @@ def _out(spec: S.Spec, out: Any) -> Path:
 
 def grid(spec: Any, *, out: str | Path | None = None, jobs: int | None = None, resume: bool = True,
          progress: bool = False, backend: str = "loky", scheduler: str | None = None, overwrite: bool = False,
-         log: Callable[[str], None] | None = None):
+         verify: bool | int | None = None, wait: bool = False, log: Callable[[str], None] | None = None):
     """Run the sweep of `spec` into `out` (default: the spec's output) and return its table, read
     back from the Parquet file: row for row what `fencesweep grid` writes.
 
     `jobs`: local worker processes (None: all cores); `backend` "dask" runs on the cluster at
     `scheduler`. `resume`: reuse the chunks an interrupted run of the same spec saved. Without
     `overwrite`, another spec's table or unfinished run at `out` stops the sweep before it starts.
+    `verify`: None, a sample of the runs is run again at tol / 10 and compared (verify.py); N:
+    N runs; False: none. `wait`: wait for another run writing `out` instead of raising UsageError.
     df.attrs: "units" ({column: unit}), "fencesweep" (the provenance: spec, hash, versions,
-    counts), "run" (run_grid's record) and, for a spec with an envelope, "points_path" (the
-    per-design-point table: points(df) reads it)."""
+    counts, "verify" the verification's record), "run" (run_grid's record) and, for a spec with
+    an envelope, "points_path" (the per-design-point table: points(df) reads it)."""
     run = run_grid(spec, out=out, jobs=jobs, resume=resume, progress=progress, backend=backend,
-                   scheduler=scheduler, overwrite=overwrite, log=log)
+                   scheduler=scheduler, overwrite=overwrite, verify=verify, wait=wait, log=log)
     df = store.read_table(run["out"])
     df.attrs["run"] = run
     if run["points"] is not None:
@@ -128,31 +151,49 @@ def grid(spec: Any, *, out: str | Path | None = None, jobs: int | None = None, r
     return df
 
 
+def _check_verify(verify: Any) -> None:
+    if verify is None or isinstance(verify, bool):
+        return
+    if not isinstance(verify, int) or verify < 1:
+        raise UsageError(f"verify = {verify!r} is not allowed: None (the default sample), a whole number >= 1 "
+                         f"(runs to re-run) or False (no verification)")
+
+
 def run_grid(spec: Any, *, out: str | Path | None = None, jobs: int | None = None, resume: bool = True,
              progress: bool = False, backend: str = "loky", scheduler: str | None = None, overwrite: bool = False,
-             log: Callable[[str], None] | None = None) -> dict:
+             verify: bool | int | None = None, wait: bool = False, log: Callable[[str], None] | None = None) -> dict:
     """grid without reading the table back: run the sweep (and, for an envelope, write the
     per-design-point table) and return what the run did, a plain dict: out, scenes, model_runs,
     chunks, chunks_computed, chunks_reused, seconds, jobs (None: Dask), failed_runs (runs that
-    raised in the engine: status 'failed: exception ...'), timings, and points (None, or for an
-    envelope its path, design_points, loads, feasible, and the best point: min_margin, binding,
-    best {column: value})."""
+    raised in the engine: status 'failed: exception ...'), timings, verify (the verification's
+    record, as in the table's metadata; None without one) and points (None, or for an envelope its
+    path, design_points, loads, feasible, and the best point: min_margin, binding, best
+    {column: value}). A failed verification also issues a verify.VerificationWarning. A file that
+    cannot be written (a full disk) raises SweepWriteError (an OSError) saying what was kept."""
     log = log or _nothing
     _check_out(out)
     _check_jobs(jobs)
     _check_backend(backend, scheduler)
+    _check_verify(verify)
     sp = load_spec(spec)
     out = _out(sp, out)
     _note_skipped_loads(sp, log)
     try:
-        res = sweep.run_sweep(sp, out, jobs=jobs, resume=resume, backend=backend, scheduler=scheduler,
-                              progress=progress, log=log, overwrite=overwrite)
+        output.check_writable(out)
+        output.check_can_start(sp, out, overwrite)  # refused at once: not even the lock file is made
+        with lock.one_writer(out, wait, log):  # the per-design-point table too
+            res = sweep.run_sweep(sp, out, jobs=jobs, resume=resume, backend=backend, scheduler=scheduler,
+                                  progress=progress, log=log, overwrite=overwrite, verify=verify, wait=wait)
+            points = _write_points(sp, res.out) if sp.envelope is not None else None
     except KeyboardInterrupt:
         raise SweepInterrupted(*output.saved_chunks(sp, out)) from None
+    except WriteError as exc:
+        raise SweepWriteError(exc, *output.saved_chunks(sp, out)) from None
+    if res.verify is not None:
+        V.warn(res.verify)
     return {"out": str(res.out), "scenes": res.n_scenes, "model_runs": res.n_models, "chunks": res.n_chunks,
             "chunks_computed": res.computed, "chunks_reused": res.reused, "seconds": res.seconds, "jobs": res.jobs,
-            "failed_runs": res.failed_runs, "timings": dict(res.timings),
-            "points": _write_points(sp, res.out) if sp.envelope is not None else None}
+            "failed_runs": res.failed_runs, "timings": dict(res.timings), "verify": res.verify, "points": points}
 
 
 def _plain(value: Any) -> Any:
@@ -186,10 +227,11 @@ def points(table: Any):
 
 def estimate(spec: Any, *, out: str | Path | None = None, jobs: int | None = None, resume: bool = True,
              backend: str = "loky", overwrite: bool = False, progress: bool = False,
-             log: Callable[[str], None] | None = None) -> Estimate:
+             verify: bool | int | None = None, log: Callable[[str], None] | None = None) -> Estimate:
     """What grid would do (`fencesweep grid --dry-run`), writing nothing: the scenes, distinct model
     runs and chunks, the chunks already done, the engine's warm-up and seconds per run, and the
-    estimated time on `jobs` processes (None: all cores; backend "dask": work in all). Its notes
+    estimated time on `jobs` processes (None: all cores; backend "dask": work in all), with the
+    runs the verification adds (`verify` as grid takes it: est.verify_runs). Its notes
     say what a user should know, e.g. that a real run would stop before it starts, and why;
     Estimate.lines() is the text the CLI prints."""
     import joblib
@@ -198,10 +240,11 @@ def estimate(spec: Any, *, out: str | Path | None = None, jobs: int | None = Non
     _check_out(out)
     _check_jobs(jobs)
     _check_backend_name(backend)
+    _check_verify(verify)
     sp = load_spec(spec)
     _note_skipped_loads(sp, log)
     return _estimate(sp, _out(sp, out), jobs or joblib.cpu_count(), resume=resume, backend=backend,
-                     overwrite=overwrite, progress=progress)
+                     overwrite=overwrite, progress=progress, verify=verify)
 
 
 def design(spec: Any, *, out: str | Path | None = None, jobs: int = 1, progress: bool = False,

@@ -47,14 +47,15 @@ def _table_rows(scene: str, cols: dict, n_params: int) -> dict:
     return store.explode_streams(cols, n_params) if scene == "stream" else cols
 
 
-def assemble(plan: PL.Plan, work: Path, out: Path) -> int:
-    """Write the table: rows in scene order, parameters from the planning pass, results from the chunks.
+def assemble(plan: PL.Plan, work: Path, out: Path, meta: dict | None = None) -> int:
+    """Write the table: rows in scene order, parameters from the planning pass, results from the
+    chunks; `meta` is added to its schema metadata (e.g. {"verify": record}).
 
     Memory holds one block of rows and at most CHUNK_CACHE chunks. Returns the number of
     rows whose run raised (status 'failed: exception ...').
     """
     spec, size = plan.spec, plan.chunk_size
-    schema = store.table_schema(spec.scene, table_meta(plan))
+    schema = store.table_schema(spec.scene, table_meta(plan) | (meta or {}))
     rcols = [(f.name, f.type) for f in store.result_schema(spec.scene)]
     np_type = {"double": np.float64, "int64": np.int64, "bool": np.bool_}
     cache: OrderedDict = OrderedDict()

@@ -189,35 +189,45 @@ def plan_while_loading(spec: S.Spec, progress: bool, params_dir: Path, simulate:
         return planned.result(), loaded
 
 
+def run_calls(stack: contextlib.ExitStack, make_calls: Callable, jobs: int, local: bool, scheduler: str | None,
+              shared: tuple) -> Iterator:
+    """The results of calls (fn, *args), as they finish: in this process (jobs 1), on `jobs`
+    local worker processes (entered on `stack`: they stop when it closes) or on Dask.
+    make_calls(where) yields the calls for where = "here", "pool" or "dask"; each fn takes the
+    sweep's `shared` (spec, simulate) as its last argument, which a pool's workers already hold
+    (_init_worker): calls for "pool" pass None."""
+    if not local:
+        import joblib
+
+        stack.enter_context(_dask(scheduler))
+        return joblib.Parallel(n_jobs=-1, return_as="generator_unordered", batch_size=1, pre_dispatch="2*n_jobs")(
+            joblib.delayed(fn)(*args) for fn, *args in make_calls("dask"))
+    if jobs == 1:
+        return (fn(*args) for fn, *args in make_calls("here"))
+    pool = stack.enter_context(_pool(jobs, shared, START_METHOD))
+    return _completed(pool, make_calls("pool"), ahead=2 * jobs)  # forks here, before a progress bar's thread
+
+
 def compute_chunks(plan: PL.Plan, spec: S.Spec, work: Path, pending: list, done: list, jobs: int,
                    local: bool, scheduler: str | None, progress: bool, simulate: Callable | None,
                    meta_chunk: dict) -> list:
     """Run the pending chunks (in this process, a local pool, or Dask) with a progress bar;
-    every chunk is written as it completes. Returns the workers' timing records."""
+    every chunk is written as it completes (by the worker; with Dask by this process). A
+    chunk that cannot be written (a full disk) raises WriteError: the workers are stopped and
+    the chunks written so far are kept. Returns the workers' timing records."""
     rows_of = plan.chunk_rows()
     shared = (spec, simulate)
 
-    def calls(write: bool, with_shared: bool):
+    def calls(where: str):
         for c in pending:
             ids = plan.chunk_models(c)
             yield (_run_chunk, c, ids, plan.first_row[ids.start:ids.stop],
-                   str(work / plan.chunk_name(c)) if write else None, dict(meta_chunk, chunk=c),
-                   shared if with_shared else None)
+                   str(work / plan.chunk_name(c)) if where != "dask" else None, dict(meta_chunk, chunk=c),
+                   shared if where != "pool" else None)
 
     stats = []
     with contextlib.ExitStack() as stack:
-        if not local:
-            import joblib
-
-            stack.enter_context(_dask(scheduler))
-            results = joblib.Parallel(n_jobs=-1, return_as="generator_unordered", batch_size=1,
-                                      pre_dispatch="2*n_jobs")(
-                joblib.delayed(fn)(*args) for fn, *args in calls(False, True))
-        elif jobs == 1:
-            results = (fn(*args) for fn, *args in calls(True, True))
-        else:
-            pool = stack.enter_context(_pool(jobs, shared, START_METHOD))
-            results = _completed(pool, calls(True, False), ahead=2 * jobs)  # forks before the bar's thread
+        results = run_calls(stack, calls, jobs, local, scheduler, shared)
         bar = stack.enter_context(contextlib.closing(progress_bar(
             plan.n_scenes - plan.skipped, Path(spec.path).stem if spec.path else "sweep", progress,
             initial=int(rows_of[done].sum()) if done else 0)))
@@ -228,6 +238,37 @@ def compute_chunks(plan: PL.Plan, spec: S.Spec, work: Path, pending: list, done:
             stats.append(stat)
             bar.update(int(rows_of[c]))
     return stats
+
+
+def _rerun(rows: list, step_factor_scale: float, shared: tuple | None = None) -> list:
+    """Run the scenes `rows` again with their step_factor times `step_factor_scale` (the rest of
+    their parameters unchanged): [(row, results)], a stream's as one chunk row (store.stream_row)."""
+    spec, simulate = shared or _SHARED
+    out = []
+    for i in rows:
+        vals = spec.resolve(int(i))
+        vals = dict(vals, step_factor=float(vals["step_factor"]) * step_factor_scale)
+        out.append((int(i), runs.run_one(spec.scene, vals, simulate)))
+    return out
+
+
+def rerun_scenes(spec: S.Spec, rows: list, step_factor_scale: float, jobs: int, local: bool, scheduler: str | None,
+                 simulate: Callable | None) -> dict:
+    """Run the scenes `rows` again at step_factor x `step_factor_scale` (the verification,
+    verify.py), on the same machinery as the chunks; {row: results}."""
+    shared = (spec, simulate)
+    n_tasks = 1 if local and jobs == 1 else 4 * (jobs if local else 8)
+    groups = [list(rows[k::n_tasks]) for k in range(min(n_tasks, len(rows)))]
+
+    def calls(where: str):
+        for group in groups:
+            yield (_rerun, group, step_factor_scale, shared if where != "pool" else None)
+
+    out = {}
+    with contextlib.ExitStack() as stack:
+        for pairs in run_calls(stack, calls, jobs, local, scheduler, shared):
+            out.update(pairs)
+    return out
 
 
 def worker_timings(stats: list) -> dict:

@@ -24,6 +24,8 @@ from fencesweep.study import output
 from fencesweep.study import plan as PL
 from fencesweep.study import runs
 from fencesweep.study import spec as S
+from fencesweep.study import verify as V
+from fencesweep.study import verify_sample as VS
 
 
 #: the kernel group (kernel/cache.py) that each scene's runs compile
@@ -55,6 +57,9 @@ class Estimate:
     jobs: int | None = None  # local processes a real run would use (None: a Dask cluster's workers)
     seconds: float | None = None  # estimated seconds on `jobs` (on Dask: of work in all), compiling included
     stop: str | None = None  # why a real run would stop before it starts (None: it would start)
+    verify_runs: int | None = None  # runs the verification re-runs at most (None: no verification)
+    verify_requested: bool = False  # --verify N (not the default sample)
+    verify_seconds: float = 0.0  # estimated seconds of work of the verification (in `seconds`)
     unavailable: str | None = None  # why the time could not be estimated (the engine failed)
 
     @property
@@ -103,13 +108,32 @@ class Estimate:
                      f"(timed on {self.timed_runs} runs)")
         split = (f" ({human(self.warm_up)} compiling, done now; {human(self.seconds - self.warm_up)} running)"
                  if self.compiled else "")
+        lines.append(self.verify_line())
+        runs = f"{self.runs_left} runs" + (f" and {self.verify_runs} re-runs" if self.verify_runs else "")
         if self.jobs:
             lines.append(f"  estimated time on {self.jobs} job{'s' if self.jobs > 1 else ''}: {human(self.seconds)} "
-                         f"for {self.runs_left} runs{split}")
+                         f"for {runs}{split}")
         else:
-            lines.append(f"  estimated time: {human(self.seconds)} of work for {self.runs_left} runs, divided by "
+            lines.append(f"  estimated time: {human(self.seconds)} of work for {runs}, divided by "
                          f"the cluster's workers{split}")
         return lines
+
+
+    def verify_line(self) -> str:
+        """What the verification adds."""
+        if self.verify_runs is None:
+            return "  verification: none (--no-verify)"
+        rule = "" if self.verify_requested else (f", at most {VS.COST_SHARE:.0%} of the run's steps beyond the "
+                                                 f"first {VS.MIN_RUNS}")
+        return (f"  verification: up to {self.verify_runs} of the {self.n_models} runs re-run at tol/10{rule} "
+                f"(~{human(self.verify_seconds)} of work)")
+
+
+def verify_seconds(n_models: int, n_verify: int, requested: bool, per_run: float) -> float:
+    """Seconds of work of a verification of `n_verify` runs (the default sample: under its cost cap)."""
+    if not requested:
+        n_verify = min(n_verify, max(VS.MIN_RUNS, VS.COST_SHARE * n_models / VS.RERUN_COST))
+    return n_verify * VS.RERUN_COST * per_run
 
 
 def human(seconds: float) -> str:
@@ -138,10 +162,12 @@ def describe_plan(plan: PL.Plan, out: Path) -> list:
 
 
 def estimate(spec: S.Spec, out: Path, jobs: int, resume: bool = True, backend: str = "loky",
-             overwrite: bool = False, progress: bool = False, simulate: Callable | None = None) -> Estimate:
+             overwrite: bool = False, progress: bool = False, simulate: Callable | None = None,
+             verify: bool | int | None = None) -> Estimate:
     """Plan `spec` into `out`, time the engine on a sample and estimate the run on `jobs` local
-    processes (backend loky) or a Dask cluster; write nothing. A spec too large to plan is
-    counted only (n_models None, `stop` says why). An engine that fails gives `unavailable`."""
+    processes (backend loky) or a Dask cluster, the verification (`verify` as run_sweep takes
+    it) included; write nothing. A spec too large to plan is counted only (n_models None, `stop`
+    says why). An engine that fails gives `unavailable`."""
     problem = PL.plan_size_problem(spec)
     if problem:  # count only: planning would not fit in memory
         return Estimate(spec.path or "spec", spec.scene, out, spec.n_scenes, spec.shape_text(), None, stop=problem)
@@ -171,4 +197,10 @@ def estimate(spec: S.Spec, out: Path, jobs: int, resume: bool = True, backend: s
     est.runs_left = plan.n_models - sum(len(plan.chunk_models(c)) for c in done)
     est.jobs = runs.local_jobs(jobs, per_run * est.runs_left) if backend == "loky" else None
     est.seconds = per_run * est.runs_left / (est.jobs or 1) + (t_warm if compiled else 0.0)
+    if verify is not False:
+        requested = verify is not None and verify is not True
+        est.verify_runs = V.planned_runs(plan.n_models, int(verify) if requested else None)
+        est.verify_requested = requested
+        est.verify_seconds = verify_seconds(plan.n_models, est.verify_runs, requested, per_run)
+        est.seconds += est.verify_seconds / (est.jobs or 1)
     return est

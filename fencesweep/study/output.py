@@ -10,7 +10,9 @@ chunks of its unfinished run (check_output).
 from __future__ import annotations
 
 import json
+import os
 import shutil
+import tempfile
 from pathlib import Path
 from typing import Callable
 
@@ -101,6 +103,33 @@ def check_output(spec: S.Spec, out: Path) -> None:
                              f"{state.get('n_chunks', '?')} chunks saved); this is {this}. Not discarding it: "
                              f"finish that run first (the same command with its spec), choose another --out, "
                              f"or add --overwrite to discard it")
+
+
+def check_writable(out: Path) -> None:
+    """Make the output's directory if it is missing and check that a file can be written in it,
+    before anything is computed; raise UsageError naming the output and why not."""
+    where = out.parent
+    try:
+        where.mkdir(parents=True, exist_ok=True)
+    except (FileExistsError, NotADirectoryError):  # a file where a directory should be, here or above
+        raise UsageError(f"cannot write {out}: {_not_a_directory(where)} is not a directory") from None
+    except OSError as exc:
+        raise UsageError(f"cannot write {out}: cannot make the directory {where}: "
+                         f"{os.strerror(exc.errno).lower() if exc.errno else exc}") from None
+    try:
+        with tempfile.TemporaryFile(dir=where, prefix=".fencesweep-probe-"):
+            pass
+    except OSError as exc:
+        reason = os.strerror(exc.errno).lower() if exc.errno else str(exc)
+        raise UsageError(f"cannot write {out}: {where} is not writable: {reason}") from None
+
+
+def _not_a_directory(path: Path) -> Path:
+    """The first of `path` and its parents that exists and is not a directory (else `path`)."""
+    for p in [path, *path.parents]:
+        if p.exists():
+            return path if p.is_dir() else p
+    return path
 
 
 def check_can_start(spec: S.Spec, out: Path, overwrite: bool = False) -> None:

@@ -42,19 +42,20 @@ def engine() -> Callable:
     return api.simulate_resolved
 
 
+def run_one(scene: str, vals: dict, simulate: Callable | None = None) -> dict:
+    """Run one parameter set: its results (a stream's as one chunk row, store.stream_row); a run
+    that raises becomes a row with outcome failed and the reason."""
+    try:
+        res, _ = (simulate or engine())(vals, trajectory=False)
+        return store.stream_row(res) if scene == "stream" else res
+    except Exception as exc:  # recorded, never silent: status names the exception
+        return store.failed_result(scene, f"failed: exception {type(exc).__name__}: {exc}")
+
+
 def run_models(scene: str, vals_list: list, simulate: Callable | None = None) -> list:
-    """Run each parameter set; a run that raises becomes a row with outcome failed and the reason."""
+    """Run each parameter set (run_one)."""
     fn = simulate or engine()
-    rows = []
-    for vals in vals_list:
-        try:
-            res, _ = fn(vals, trajectory=False)
-            if scene == "stream":
-                res = store.stream_row(res)
-        except Exception as exc:  # recorded, never silent: status names the exception
-            res = store.failed_result(scene, f"failed: exception {type(exc).__name__}: {exc}")
-        rows.append(res)
-    return rows
+    return [run_one(scene, vals, fn) for vals in vals_list]
 
 
 def _warm_rows(spec: S.Spec, rows: Iterable[int], fn: Callable) -> None:

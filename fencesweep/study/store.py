@@ -27,6 +27,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from fencesweep.errors import write_error
 from fencesweep.model import params as P
 from fencesweep.model import results as R
 
@@ -299,22 +300,26 @@ def results_table(scene: str, rows: list, model_ids: Iterable[int] | None = None
 @contextlib.contextmanager
 def atomic_path(path: str | Path, fsync: bool = True):
     """Yield a temporary path beside `path`; on success fsync it and os.replace it onto `path`.
+    The temporary file is removed whatever happens; an OSError (ENOSPC: the disk is full) is
+    raised as a WriteError naming `path`, and `path` keeps what it held before.
 
     Without fsync a power loss may leave a damaged file under the final name (never a
     killed process: the rename is atomic); chunks skip it, as store.chunk_complete rejects a
     damaged chunk and the sweep recomputes it."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".fencesweep-tmp-{os.getpid()}-{path.name}")
     try:
+        path.parent.mkdir(parents=True, exist_ok=True)
         yield tmp
         if fsync:
             with open(tmp, "rb") as fh:
                 os.fsync(fh.fileno())
         os.replace(tmp, path)
+    except OSError as exc:  # a full disk, a read-only place: one error that names the file
+        raise write_error(exc, path) from exc
     finally:
-        if tmp.exists():
-            tmp.unlink()
+        with contextlib.suppress(OSError):
+            tmp.unlink(missing_ok=True)
 
 
 def write_table_atomic(table: pa.Table, path: str | Path, fsync: bool = True) -> None:
@@ -352,17 +357,31 @@ class TableWriter:
         self.schema = schema
         self._cm = atomic_path(self.path)
         self._tmp = self._cm.__enter__()
-        self._writer = pq.ParquetWriter(self._tmp, schema, compression=COMPRESSION)
+        try:
+            self._writer = pq.ParquetWriter(self._tmp, schema, compression=COMPRESSION)
+        except OSError as exc:
+            with contextlib.suppress(OSError):
+                self._cm.__exit__(type(exc), exc, None)  # removes the temporary file
+            raise write_error(exc, self.path) from exc
         self.n_rows = 0
 
     def write(self, columns: dict) -> None:
         """One row group: {name: values}, each a sequence, a numpy array or an Arrow array."""
         arrays = [arrow_array(columns[f.name], f.type) for f in self.schema]
-        self._writer.write_table(pa.Table.from_arrays(arrays, schema=self.schema))
+        try:
+            self._writer.write_table(pa.Table.from_arrays(arrays, schema=self.schema))
+        except OSError as exc:
+            raise write_error(exc, self.path) from exc
         self.n_rows += len(arrays[0]) if arrays else 0
 
     def close(self) -> None:
-        self._writer.close()
+        """Finish the file and put it in place; on an error, remove the temporary file and raise
+        a WriteError (the file at `path` keeps what it held)."""
+        try:
+            self._writer.close()
+        except OSError as exc:
+            self.abort()
+            raise write_error(exc, self.path) from exc
         self._cm.__exit__(None, None, None)
 
     def abort(self) -> None:

@@ -21,9 +21,15 @@ run_sweep orchestrates the steps, each in its own module:
    On Linux the local workers are forked from this process once it has loaded the
    compiled kernels (which takes about as long as planning, so a forked helper plans
    meanwhile): they start at once and load nothing. Elsewhere they are loky processes.
-4. assemble.py: the table is assembled block by block from the parameter blocks and the
-   chunks (rows in scene order) into one Parquet file, atomically; then the work directory
-   is removed.
+4. verify.py: a sample of the runs (the extremes first, then random) is run again at a 10x
+   tighter tolerance and compared with the chunks' results, the table's values (verification).
+5. assemble.py: the table is assembled block by block from the parameter blocks and the
+   chunks (rows in scene order) into one Parquet file, atomically, the verification's record
+   in its metadata; then the work directory is removed.
+
+The whole run holds the output's lock (lock.py: one writer per output), taken once the
+output's directory is known to be writable and before anything is made or removed. A file that
+cannot be written (a full disk) raises WriteError and keeps the chunks written so far.
 
 Results depend only on each run's parameters, and the assembly only on the plan: the
 table is the same, bit for bit, whatever --jobs or backend. estimate.py is the dry run of
@@ -38,7 +44,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
-from fencesweep.study import compute, output, runs
+from fencesweep.study import compute, lock, output, runs
+from fencesweep.study import verify as V
 from fencesweep.study import plan as PL
 from fencesweep.study import spec as S
 from fencesweep.study.assemble import assemble
@@ -59,8 +66,9 @@ class Outcome:
     failed_runs: int = 0
     jobs: int | None = None  # local processes used (None: Dask)
     #: where the time went: seconds of this process's phases (plan, load, sample, compute,
-    #: assemble) and, summed over the chunks, of the workers' runs and chunk writes
+    #: verify, assemble) and, summed over the chunks, of the workers' runs and chunk writes
     timings: dict = field(default_factory=dict)
+    verify: dict | None = None  # the verification's record (verify.py; None: not verified)
 
 
 @dataclass
@@ -78,6 +86,7 @@ class _Run:
     log: Callable[[str], None]
     serial_below: float | None
     timings: dict = field(default_factory=dict)
+    per_run: float | None = None  # seconds per model run, when timed
 
 
 def _quiet(msg: str) -> None:
@@ -88,43 +97,60 @@ def run_sweep(spec: S.Spec, out: str | Path | None = None, jobs: int | None = No
               resume: bool = True, backend: str = "loky", scheduler: str | None = None,
               progress: bool = False, simulate: Callable | None = None, plan: PL.Plan | None = None,
               log: Callable[[str], None] | None = None, serial_below: float | None = None,
-              overwrite: bool = False) -> Outcome:
+              overwrite: bool = False, verify: bool | int | None = None, wait: bool = False) -> Outcome:
     """Run a sweep and write its table. `simulate(vals, trajectory=False) -> (results, None)`
     defaults to fencesweep.model.simulate.simulate_resolved (tests pass a fake). A local sweep whose
     remaining work is estimated below `serial_below` seconds (default runs.SERIAL_BELOW) runs
     in this process: starting workers would cost more than it saves. `log` receives the
-    notes a user should see (skipped scenes, unused axes, resuming). Without `overwrite`,
-    another spec's table or unfinished run at `out` stops the sweep before it starts
-    (output.check_output)."""
+    notes a user should see (skipped scenes, unused axes, resuming, waiting). The output's
+    directory must be writable (output.check_writable) and its lock free (lock.one_writer:
+    another run writing `out` raises UsageError, or with `wait` is waited for). Without
+    `overwrite`, another spec's table or unfinished run at `out` stops the sweep before it
+    starts (output.check_output). `verify`: None or True, the default sample is re-run at
+    tol / 10 (verify.py); N, N runs; False, none. A file that cannot be written (a full disk)
+    raises WriteError; the chunks finished are kept for the next run."""
     t0 = time.perf_counter()
     if not isinstance(spec, S.Spec):
         raise TypeError(f"run_sweep takes a spec.Spec (specfile.load reads one from YAML), not {spec!r}")
     out = Path(out) if out is not None else output.default_output(spec)
-    output.check_can_start(spec, out, overwrite)  # before anything is made or removed
-    if jobs is None:
-        import joblib
+    output.check_writable(out)
+    output.check_can_start(spec, out, overwrite)  # refused at once: not even the lock file is made
+    with lock.one_writer(out, wait, log or _quiet):  # before anything is made or removed
+        output.check_can_start(spec, out, overwrite)  # again: another run may have finished meanwhile
+        if jobs is None:
+            import joblib
 
-        jobs = joblib.cpu_count()
-    root = output.work_root(out)
-    run = _Run(spec, out, root / (plan.salt if plan is not None else PL.plan_salt(spec))[:16], jobs,
-               backend == "loky", scheduler, progress, simulate, log or _quiet, serial_below)
-    made = output.open_work(root, run.work, resume, run.log)
-    if plan is None:
-        plan = _plan(run, made)
-    per_run = _size_chunks(run, plan)
+            jobs = joblib.cpu_count()
+        root = output.work_root(out)
+        run = _Run(spec, out, root / (plan.salt if plan is not None else PL.plan_salt(spec))[:16], jobs,
+                   backend == "loky", scheduler, progress, simulate, log or _quiet, serial_below)
+        made = output.open_work(root, run.work, resume, run.log)
+        if plan is None:
+            plan = _plan(run, made)
+        return _run(run, plan, root, verify, t0)
+
+
+def _run(run: _Run, plan: PL.Plan, root: Path, verify: bool | int | None, t0: float) -> Outcome:
+    """Size the chunks, compute the missing ones, verify, assemble the table, remove the work directory."""
+    run.per_run = _size_chunks(run, plan)
     output.write_state(run.work, plan)
     done = output.chunks_done(plan, run.work)
     pending = sorted(set(range(plan.n_chunks)) - set(done))
     if done:
         run.log(f"resuming: {len(done)} of {plan.n_chunks} chunks already in {run.work}")
     if pending:
-        _compute(run, plan, pending, done, per_run)
+        _compute(run, plan, pending, done)
+    record = None
+    if verify is not False:
+        record, run.timings["verify"] = V.run_verification(
+            plan, run.work, None if verify is None or verify is True else int(verify), run.jobs, run.local,
+            run.scheduler, run.simulate, run.serial_below, run.per_run)
     t = time.perf_counter()
-    failed = assemble(plan, run.work, out)
+    failed = assemble(plan, run.work, run.out, {"verify": record} if record is not None else None)
     run.timings["assemble"] = time.perf_counter() - t
     shutil.rmtree(root)
-    return Outcome(out, plan.n_scenes - plan.skipped, plan.n_models, plan.n_chunks, len(pending), len(done),
-                   time.perf_counter() - t0, failed, run.jobs if run.local else None, run.timings)
+    return Outcome(run.out, plan.n_scenes - plan.skipped, plan.n_models, plan.n_chunks, len(pending), len(done),
+                   time.perf_counter() - t0, failed, run.jobs if run.local else None, run.timings, record)
 
 
 def _plan(run: _Run, made: bool) -> PL.Plan:
@@ -163,14 +189,14 @@ def _size_chunks(run: _Run, plan: PL.Plan) -> float | None:
     return per_run
 
 
-def _compute(run: _Run, plan: PL.Plan, pending: list, done: list, per_run: float | None) -> None:
+def _compute(run: _Run, plan: PL.Plan, pending: list, done: list) -> None:
     """Warm the engine up (unless sizing the chunks did), choose this process alone when the
     work left is too small to pay for workers, and run the pending chunks."""
-    if per_run is None:
+    if run.per_run is None:
         run.timings["warm_up"] = runs.warm_up(plan, run.simulate)
-        per_run, _ = runs.time_sample(plan, run.simulate, budget=0.3, most=8)
+        run.per_run, _ = runs.time_sample(plan, run.simulate, budget=0.3, most=8)
     if run.local:
-        work_left = per_run * sum(len(plan.chunk_models(c)) for c in pending)
+        work_left = run.per_run * sum(len(plan.chunk_models(c)) for c in pending)
         if run.jobs > 1 and runs.local_jobs(run.jobs, work_left, run.serial_below) == 1:
             run.log(f"about {work_left:.1f} s of work: running in this process (starting workers costs more)")
             run.jobs = 1
