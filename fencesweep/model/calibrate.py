@@ -3,43 +3,54 @@
 In the dimensionless rigid-wall impact x'' = -max(x^1.5 + q x^0.25 x', 0) (hertz) or
 x'' = -max(x + beta x', 0) (linear), x(0) = 0, x'(0) = 1, the rebound speed at the first
 return of the force to 0 is e(q), independent of speed, mass and stiffness; q(e) is its
-inverse, found by Brent's method. The impact scene's compiled kernel integrates it.
+inverse, found by Brent's method.
+
+The impact is integrated by SciPy (DOP853, with the force's return to zero as a terminal
+event) on the law's own formula (contact.kelvin_force, called as plain Python), not by the
+compiled impact scene: a first cycle then compiles only the cycle's kernels (the impact
+scene's took ~5 s of a cold first run, benchmarks/startup.py). The calibration costs ~1 s once
+per (e, law) and is kept beside the compiled kernels (kernel/cache.py solved);
+tests/test_contact.py checks that the impact scene, run at the solved q, rebounds at e.
 """
 from __future__ import annotations
 
 from functools import lru_cache
 
-import numpy as np
-
-from fencesweep.model import layout as Lp
 from fencesweep.kernel.cache import solved
+from fencesweep.model import layout as Lp
+from fencesweep.model.contact import kelvin_force
 
 #: tolerance of the calibration's impacts: e(q) to ~1e-10, far below the 2e-4 of docs/model.md §4
 CALIBRATION_TOL = 1e-12
 
 
 def restitution(c: float, law: str) -> float:
-    """e of the dimensionless rigid-wall impact with damping c (module docstring; docs/model.md (4.5),
-    (4.6), (4.7))."""
-    from fencesweep.model.results import N_IMPACT_RESULTS, RJ_E_EFF
-    from fencesweep.model.scenes.impact import impact_kernel
+    """e of the dimensionless rigid-wall impact with damping c (module docstring; docs/model.md
+    (4.5), (4.6), (4.7)): integrated until the unclipped force returns to zero."""
+    from scipy.integrate import solve_ivp
 
-    p = np.zeros(Lp.N_P)
-    p[Lp.LAW] = Lp.LAW_HERTZ if law == "hertz" else Lp.LAW_LINEAR
-    p[Lp.M1] = p[Lp.KC] = p[Lp.R] = p[Lp.I2] = 1.0  # unit mass, stiffness, speed (R, I2 unused)
-    p[Lp.CD] = c
-    p[Lp.LL] = p[Lp.AA] = np.inf
-    p[Lp.TOL] = CALIBRATION_TOL
-    out = np.empty(N_IMPACT_RESULTS)
-    impact_kernel(p, True, False, 1.0, out)
-    return float(out[RJ_E_EFF])
+    code = Lp.LAW_HERTZ if law == "hertz" else Lp.LAW_LINEAR
+    force = getattr(kelvin_force, "py_func", kelvin_force)  # plain Python (module docstring)
+
+    def rhs(_t, y):
+        return (y[1], -force(max(y[0], 0.0), y[1], 1.0, c, code)[0])
+
+    def released(_t, y):
+        return force(max(y[0], 0.0), y[1], 1.0, c, code)[0]
+
+    released.terminal, released.direction = True, -1
+    sol = solve_ivp(rhs, (0.0, 1e3), (0.0, 1.0), method="DOP853", rtol=CALIBRATION_TOL,
+                    atol=CALIBRATION_TOL, events=released, first_step=1e-6)
+    if not sol.t_events[0].size:
+        raise ValueError(f"the calibration impact with damping {c!r} did not end")
+    return float(-sol.y_events[0][0][1])
 
 
 @lru_cache(maxsize=None)
 def damping_coefficient(e: float, law: str = "hertz") -> float:
     """Dimensionless damping q (hertz) or beta (linear) that gives restitution e (docs/model.md §4);
     b_lin = beta sqrt(m1 k_lin), q enters as q sqrt(m1 k1). Solved once per (e, law) and kept
-    beside the compiled kernels (_cache.solved)."""
+    beside the compiled kernels (kernel/cache.py solved)."""
     return solved("damping_coefficient", (float(e), law), lambda: solve_damping_coefficient(float(e), law))
 
 

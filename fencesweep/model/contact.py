@@ -1,7 +1,7 @@
 """Contact and friction laws (docs/model.md §4, §5, §6) and their closed forms (§7).
 
 Compiled pieces (one formula each) are used inside the kernels. The damping coefficient
-solved from e lives in calibrate.py (it runs the impact scene).
+solved from e lives in calibrate.py.
 """
 from __future__ import annotations
 
