@@ -18,13 +18,13 @@ INTEGRATORS = ("dopri5", "rk4")
 
 #: Local error tolerance at step_factor = 1. Every step keeps the difference of the 5th- and
 #: 4th-order solutions below TOL relative to the state (rtol) and to the scene's scales (atol,
-#: scenes/cycle.py error_scales: each component's allowed error moves a point of the scene by
+#: model/scenes/cycle/books.py error_scales: each component's allowed error moves a point of the scene by
 #: TOL x the fence length, or TOL x the fastest drive-or-belt speed for velocities). Chosen
 #: as the loosest power of ten at which the widened validation set
 #: (benchmarks/validation_scenes.yaml, tests/test_validation.py) stays within 1e-4 of the
 #: reference in peak_force, deflection_max and t_exit: measured at 1e-8, 1e-7, 1e-6 and 1e-5,
-#: the scenes missed are none at 1e-8, the same one at 1e-7 and 1e-6 (graze_tip_clip, see
-#: KNOWN_MISSES there) and 18 at 1e-5 (a load resting on a free fence chatters: 3 impacts,
+#: the scenes missed are none at 1e-8, the same one at 1e-7 and 1e-6 (graze_tip_clip, since
+#: met by APPROACH_TOL below) and 18 at 1e-5 (a load resting on a free fence chatters: 3 impacts,
 #: 1e-3 errors; results/tolerance_scan.md).
 #: The named cases are then ~1e-6 from the reference (benchmarks/tolerance_scan.py).
 TOL = 1e-6
@@ -52,7 +52,7 @@ FAC_MAX = 10.0
 #: Largest step, as a fraction of the shortest time scale of the
 #: fence (the cycle t_c, the element's natural period 2 pi sqrt(I2/K2)): a step then spans less
 #: than a quarter of any oscillation of the fence, so each gap function of docs/model.md §5 has at
-#: most one interior extremum in it, which the graze check and the peak finder (scenes/cycle.py)
+#: most one interior extremum in it, which the graze check and the peak finder (model/scenes/cycle/)
 #: rely on (after the exit too: a free fence's deflection is not unimodal over a long step).
 H_MAX_PER_PERIOD = 1.0 / 12.0
 
