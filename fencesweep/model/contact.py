@@ -82,6 +82,16 @@ def pulse_time(law, m, kc, speed):
     return math.pi * math.sqrt(m / kc)
 
 
+def wall_force_scale(m1: float, k: float, v0: float, law: int) -> float:
+    """The force scale [N] of a rigid-wall impact of mass m1 at speed v0 (docs/model.md (7.7)), in
+    which the dimensionless impact (4.5) / (4.6) is written: k1 D*^1.5 with D* = (m1 v0^2 / k1)^0.4
+    (hertz), k_lin D* with D* = v0 sqrt(m1 / k_lin) (linear)."""
+    if law == Lp.LAW_HERTZ:
+        d = (m1 * v0 * v0 / k) ** 0.4
+        return k * d * math.sqrt(d)
+    return k * v0 * math.sqrt(m1 / k)
+
+
 def drop_speed(H: float) -> float:
     """v_H = sqrt(2 g H) [m/s] (docs/model.md (7.1))."""
     return math.sqrt(2.0 * Lp.G * H)
