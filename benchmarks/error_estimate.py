@@ -28,7 +28,7 @@ import numpy as np
 import pandas as pd
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(ROOT / "benchmarks"), str(ROOT / "tests")]
+sys.path[:0] = [str(ROOT), str(ROOT / "benchmarks"), str(ROOT / "tests")]  # this tree's package first
 
 import test_validation as tv  # noqa: E402  (the validation test's error definition and floors)
 from main_job_v1_v2 import export  # noqa: E402  (a revision's package, exported from git)

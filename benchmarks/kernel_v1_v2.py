@@ -26,32 +26,52 @@ import sys
 import tempfile
 from pathlib import Path
 
-from main_job_v1_v2 import export  # a revision's package, exported from git
-
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))  # this tree's package, for numerics (step_factor, looser_table)
+
+from main_job_v1_v2 import export  # noqa: E402  (a revision's package, exported from git)
+
 V1 = "fbbc326"
 CODE = r"""
-import json, sys, time, statistics
+import json, os, sys, time, statistics
 import numpy as np
 import fencesweep
-from fencesweep.model.params import resolve
-from fencesweep.model.prepare import prepare
-from fencesweep.model.scenes.cycle import TRAJ_COLUMNS
-try:  # since the scene stream, the kernel of both scenes lives in scenes/stream.py
-    from fencesweep.model.scenes.stream import cycle_kernel
-except ImportError:
-    from fencesweep.model.scenes.cycle import cycle_kernel
-from fencesweep.model.results import N_CYCLE_RESULTS, unpack
-out = np.empty(N_CYCLE_RESULTS); traj = np.empty((0, len(TRAJ_COLUMNS)))
+# the layout is read from the package's own files, not from a failed import: an editable install
+# of another checkout would otherwise supply the missing fencesweep.model to the flat package
+if os.path.isdir(os.path.join(os.path.dirname(fencesweep.__file__), "model")):
+    # the layered package: one compiled entry, run_cycles, for a cycle (a stream of one) and a stream
+    from fencesweep.model.params import resolve
+    from fencesweep.model.prepare import prepare
+    from fencesweep.model import layout as Lp
+    from fencesweep.model.scenes.cycle.layout import N_TRAJ
+    from fencesweep.model.scenes.stream import run_cycles
+    from fencesweep.model.results import N_CYCLE_RESULTS, N_STREAM_CYCLE_RESULTS, unpack
+    out = np.empty((1, N_STREAM_CYCLE_RESULTS)); traj = np.empty((0, N_TRAJ)); starts = np.empty(2, np.int64)
+    def kernel(p):
+        loads = np.ascontiguousarray(p[list(Lp.LOAD_SLOTS)][None, :]); period = float(p[Lp.TC])
+        return lambda: run_cycles(p, loads, period, out, traj, starts)
+    def results():
+        return unpack("cycle", out[0, :N_CYCLE_RESULTS])
+else:  # the flat package of v1 (fbbc326): cycle_kernel(p, out, traj)
+    from fencesweep.params import resolve
+    from fencesweep.setup import prepare
+    from fencesweep.scenes.cycle import TRAJ_COLUMNS, cycle_kernel
+    from fencesweep.results import N_CYCLE_RESULTS, unpack
+    out = np.empty(N_CYCLE_RESULTS); traj = np.empty((0, len(TRAJ_COLUMNS)))
+    def kernel(p):
+        return lambda: cycle_kernel(p, out, traj)
+    def results():
+        return unpack("cycle", out)
 def timed(p, n):
-    cycle_kernel(p, out, traj)
+    run = kernel(p)
+    run()
     ts = []
     for _ in range(5):
         t = time.process_time()
         for _ in range(n):
-            cycle_kernel(p, out, traj)
+            run()
         ts.append((time.process_time() - t) / n)
-    return statistics.median(ts) * 1e3, unpack("cycle", out)
+    return statistics.median(ts) * 1e3, results()
 rows = []
 for case in ("small_far", "long_near"):
     for drive in ("flexible", "rigid"):

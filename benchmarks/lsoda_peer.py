@@ -106,7 +106,7 @@ from numba import njit
 from numbalsoda import lsoda, lsoda_sig
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "benchmarks"))
+sys.path[:0] = [str(ROOT), str(ROOT / "benchmarks")]  # this tree's package (main only), the reference
 
 from reference import q_from_e, zeta_from_e  # noqa: E402  (the reference's calibration)
 

@@ -12,9 +12,10 @@ A step belongs to the phase in which it starts. Per phase:
 
 * steps (accepted) from the trajectory of the compiled kernel (one row per step);
 * step attempts and right-hand-side evaluations from a replay of the same cycle with the JIT
-  off (NUMBA_DISABLE_JIT=1, in a subprocess), in which the kernel's `rhs` and
-  `integrate.take_step` are wrapped by counters. The replay must take the same accepted
-  steps per phase as the compiled kernel (checked; a difference is printed and marked);
+  off (NUMBA_DISABLE_JIT=1, in a subprocess), in which the kernel's `rhs` and the step of the
+  cycle's loop (kernel/driver.py `integrate`, cycle/run.py's `loop`) are wrapped by counters.
+  The replay must take the same accepted steps per phase as the compiled kernel (checked; a
+  difference is printed and marked);
 * time, measured directly: while the compiled kernel runs (warm), a second thread, in
   compiled code without the GIL on the other core, watches the trajectory buffer and reads
   the CPU's time-stamp counter the moment the rows that end the phases are written (row 0:
@@ -52,31 +53,38 @@ PHASES = ("approach", "contact", "after")
 #: after an event included); printed as JSON
 REPLAY = r"""
 import json, sys
-import fencesweep
-from fencesweep import integrate, params
+from fencesweep.kernel.jit import JIT_DISABLED
+from fencesweep.model import params
 from fencesweep.model.simulate import simulate_resolved
-from fencesweep.model.scenes import cycle
+from fencesweep.model.scenes import stream
+from fencesweep.model.scenes.cycle import peaks, rhs as rhs_module, run as run_module
 
 calls = []              # per rhs call: the start time of the current step attempt of the loop
 attempts = []           # per step attempt of the loop: (t, err)
 cur = [0.0]
-real_rhs, real_take = cycle.rhs, integrate.take_step
+real_rhs, real_step = rhs_module.rhs, rhs_module.step
 
 def rhs(t, *a):
     calls.append(cur[0])
     return real_rhs(t, *a)
 
-def take_step(method, fun, t, *a):
-    loop = sys._getframe(1).f_code.co_name == "run"   # not the peak search's step to a peak
-    if loop:
-        cur[0] = t
-    err = real_take(method, fun, t, *a)
-    if loop:
-        attempts.append((t, err))
+def loop_step(method, t, *a):   # the step of the cycle's loop, not an event's or a peak's re-step
+    cur[0] = t
+    err = real_step(method, t, *a)
+    attempts.append((t, err))
     return err
 
-cycle.rhs = rhs
-integrate.take_step = take_step
+# With the JIT off every kernel function is its plain Python function. rhs is called by name from
+# these modules, and as RHS from the step's own globals (kernel/jit.py specialise gives a template's
+# copy a globals dict of its own); the cycle's loop (kernel/driver.py integrate, specialised) calls
+# the step as STEP from its own globals, while events.py and peaks.py call the same step by name.
+assert JIT_DISABLED, "the replay needs NUMBA_DISABLE_JIT=1"
+assert real_step.__globals__["RHS"] is real_rhs and run_module.loop.__globals__["STEP"] is real_step
+for module in (run_module, peaks, stream):
+    assert module.rhs is real_rhs
+    module.rhs = rhs
+real_step.__globals__["RHS"] = rhs
+run_module.loop.__globals__["STEP"] = loop_step
 vals = params.resolve("cycle", sys.argv[1], drive=sys.argv[2])
 res, _ = simulate_resolved(vals)
 print(json.dumps({"t_first_contact": res["t_first_contact"], "t_exit": res["t_exit"], "n_steps": res["n_steps"],
@@ -179,12 +187,13 @@ def tsc_hz(rdtsc) -> float:
 
 def phase_times(case: str, drive: str, rounds: int, tools, hz: float) -> dict:
     """Median seconds per phase (watched), the kernel without a trajectory, and the step split."""
+    from fencesweep.model import layout as Lp
     from fencesweep.model import params
-    from fencesweep.model.simulate import simulate_resolved
-    from fencesweep.model.results import N_CYCLE_RESULTS
-    from fencesweep.model.scenes.cycle import TRAJ_COLUMNS
-    from fencesweep.model.scenes.stream import cycle_kernel
     from fencesweep.model.prepare import prepare
+    from fencesweep.model.results import N_STREAM_CYCLE_RESULTS
+    from fencesweep.model.scenes.cycle.layout import N_TRAJ
+    from fencesweep.model.scenes.stream import run_cycles
+    from fencesweep.model.simulate import simulate_resolved
 
     rdtsc, watch = tools
     vals = params.resolve("cycle", case, drive=drive)
@@ -199,12 +208,20 @@ def phase_times(case: str, drive: str, rounds: int, tools, hz: float) -> dict:
         raise RuntimeError(f"{case} {drive}: the trajectory has no row at A or t_exit, or fewer than one per step")
     rows = np.array([0, k_a, k_e, len(t) - 1], np.int64)
     p = prepare(vals)
-    out = np.empty(N_CYCLE_RESULTS)
-    buf = np.empty((len(t) + 16, len(TRAJ_COLUMNS)))
+    # the cycle as the kernel runs it: a stream of one (model/simulate.py _cycle)
+    loads = np.ascontiguousarray(p[list(Lp.LOAD_SLOTS)][None, :])
+    period = float(p[Lp.TC])
+    out = np.empty((1, N_STREAM_CYCLE_RESULTS))
+    starts = np.empty(2, np.int64)
+    buf = np.empty((len(t) + 16, N_TRAJ))
     col0 = buf[:, 0]            # a view: the watcher reads the kernel's writes of column t
-    none = np.empty((0, len(TRAJ_COLUMNS)))
-    cycle_kernel(p, out, buf)
-    cycle_kernel(p, out, none)   # warm
+    none = np.empty((0, N_TRAJ))
+
+    def cycle_kernel(traj):
+        return run_cycles(p, loads, period, out, traj, starts)
+
+    cycle_kernel(buf)
+    cycle_kernel(none)   # warm
     watch(col0, rows[:0], np.zeros(1, np.int64), np.zeros(3, np.int64))   # compiled before the runs
     per_phase, total, bare = [], [], []
     tries = 0
@@ -218,7 +235,7 @@ def phase_times(case: str, drive: str, rounds: int, tools, hz: float) -> dict:
         while ctl[0] == 0:
             pass
         c0 = rdtsc()
-        n = cycle_kernel(p, out, buf)
+        n = cycle_kernel(buf)
         c1 = rdtsc()
         ctl[1] = 1
         th.join()
@@ -229,7 +246,7 @@ def phase_times(case: str, drive: str, rounds: int, tools, hz: float) -> dict:
         per_phase.append(np.diff(stamps) / hz)
         total.append((c1 - c0) / hz)
         c0 = rdtsc()
-        cycle_kernel(p, out, none)
+        cycle_kernel(none)
         bare.append((rdtsc() - c0) / hz)
     if not per_phase:
         raise RuntimeError(f"{case} {drive}: the watcher never ran through a whole cycle (the other core busy?)")
@@ -294,7 +311,7 @@ def phase_table(rounds: int = 101) -> list[str]:
         "the cycle (max(t_exit, t_c): only the fence is stepped). A step belongs to the phase in which it starts. "
         "*steps*: accepted steps (their sum checked against the compiled kernel's n_steps), *rejected*, "
         "*RHS evaluations*: counted in a replay of the same cycle with the JIT off (NUMBA_DISABLE_JIT=1), the "
-        "kernel's `rhs` and `integrate.take_step` wrapped by counters; every evaluation is charged to the step "
+        "kernel's `rhs` and the step of the cycle's loop wrapped by counters; every evaluation is charged to the step "
         "attempt it belongs to (event handling and the peak search's extra step included; *RHS per step*: per "
         "attempt, rejected ones included). *time, watched*: measured directly, warm, the median over runs: a "
         "second thread, compiled and without the GIL on the other core, spins on the trajectory buffer and reads "

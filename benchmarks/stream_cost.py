@@ -3,14 +3,15 @@ about n_cycles cycles").
 
     python benchmarks/stream_cost.py      -> prints a table, writes results/stream_cost.md
 
-Both scenes run the one compiled kernel (scenes/stream.py). Warm CPU time (time.process_time),
-the median of REPEATS repeats, the two measurements of a row interleaved: the two named cases
-as `cycle` runs (each RUNS times), and a stream of N_CYCLES cycles of alternating small_far /
-long_near loads (RUNS / N_CYCLES times), at T = t_c and at T = 2 t_c (where the fence rests
-alone for t_c after each cycle: the steps of that rest are the stream's extra cost). Per cycle:
-the stream's time over N_CYCLES, against the mean of the two cycles' times; and the steps
-(accepted + rejected) of each: a stream's later cycles start with the fence moving, which
-changes how many steps their contacts take (fewer or more), and its rest adds steps.
+Both scenes run the one compiled kernel (scenes/stream.py run_cycles; a cycle is a stream of
+one). Warm CPU time (time.process_time), the median of REPEATS repeats, the two measurements of
+a row interleaved: the two named cases as `cycle` runs (each RUNS times), and a stream of
+N_CYCLES cycles of alternating small_far / long_near loads (RUNS / N_CYCLES times), at T = t_c
+and at T = 2 t_c (where the fence rests alone for t_c after each cycle: the steps of that rest
+are the stream's extra cost). Per cycle: the stream's time over N_CYCLES, against the mean of
+the two cycles' times; and the steps (accepted + rejected) of each: a stream's later cycles
+start with the fence moving, which changes how many steps their contacts take (fewer or more),
+and its rest adds steps.
 """
 from __future__ import annotations
 
@@ -22,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))  # this tree's package
 N_CYCLES = 20
 RUNS = 200
 REPEATS = 7
@@ -30,25 +32,31 @@ ELEMENTS = {"72/570 (paper)": dict(B2=72.0, K2=570.0), "15/2075 (maps' recommend
 
 
 def _kernels(params: dict, ratio: float):
+    """The two named cases as `cycle` runs and the stream, each a call of the one compiled entry
+    run_cycles (a cycle is a stream of one, as model/simulate.py runs it); and their result rows."""
     from fencesweep import resolve
-    from fencesweep.model.results import N_CYCLE_RESULTS, N_STREAM_CYCLE_RESULTS
-    from fencesweep.model.scenes.cycle import TRAJ_COLUMNS
-    from fencesweep.model.scenes.stream import cycle_kernel, stream_kernel
+    from fencesweep.model import layout as Lp
     from fencesweep.model.prepare import load_table, prepare
+    from fencesweep.model.results import N_STREAM_CYCLE_RESULTS
+    from fencesweep.model.scenes.cycle.layout import N_TRAJ
+    from fencesweep.model.scenes.stream import run_cycles
 
-    traj = np.empty((0, len(TRAJ_COLUMNS)))
+    traj = np.empty((0, N_TRAJ))
+    one_starts = np.empty(2, np.int64)
     cycles, outs = [], []
     for case in ("small_far", "long_near"):
         p = prepare(resolve("cycle", case, **params))
-        outs.append(np.empty(N_CYCLE_RESULTS))
-        cycles.append(lambda p=p, out=outs[-1]: cycle_kernel(p, out, traj))
+        one = np.ascontiguousarray(p[list(Lp.LOAD_SLOTS)][None, :])
+        outs.append(np.empty((1, N_STREAM_CYCLE_RESULTS)))
+        cycles.append(lambda p=p, one=one, tc=float(p[Lp.TC]), out=outs[-1]: run_cycles(p, one, tc, out, traj,
+                                                                                         one_starts))
     vals = resolve("stream", loads=["small_far", "long_near"] * (N_CYCLES // 2), **params)
     period = ratio * vals["t_c"]
     vals = resolve("stream", loads=["small_far", "long_near"] * (N_CYCLES // 2), period=period, **params)
     p, loads = prepare(vals), load_table(vals)
     out = np.empty((N_CYCLES, N_STREAM_CYCLE_RESULTS))
     starts = np.empty(N_CYCLES + 1, np.int64)
-    return cycles, (lambda: stream_kernel(p, loads, period, out, traj, starts)), out, outs
+    return cycles, (lambda: run_cycles(p, loads, period, out, traj, starts)), out, outs
 
 
 def _time(fn, n: int) -> float:
@@ -69,7 +77,7 @@ def measure(params: dict, ratio: float) -> dict:
         c_ms.append(0.5 * sum(_time(f, RUNS) for f in cycles) * 1e3)
         s_ms.append(_time(stream, RUNS // N_CYCLES) * 1e3)
     steps = out[:, RI["n_steps"]].sum() + out[:, RI["n_rejected"]].sum()
-    c_steps = 0.5 * sum(o[RI["n_steps"]] + o[RI["n_rejected"]] for o in outs)
+    c_steps = 0.5 * sum(o[0, RI["n_steps"]] + o[0, RI["n_rejected"]] for o in outs)
     return {"cycle_ms": statistics.median(c_ms), "stream_ms": statistics.median(s_ms), "steps_per_cycle": steps / N_CYCLES,
             "cycle_steps": c_steps}
 

@@ -15,16 +15,19 @@ writes it to benchmarks/sweep_dispatch_SCENE.txt.
 from __future__ import annotations
 
 import argparse
+import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
-from fencesweep.model import simulate as api
-from fencesweep.study import compute as W
-from fencesweep.study import runs, store
-from fencesweep.model import params as P
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # this tree's package
+
+from fencesweep.model import params as P  # noqa: E402
+from fencesweep.model import simulate as api  # noqa: E402
+from fencesweep.study import compute as W  # noqa: E402
+from fencesweep.study import runs, store  # noqa: E402
 
 
 def _noop(c, ids, rows, path, meta, shared=None):

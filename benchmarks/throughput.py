@@ -10,8 +10,9 @@ where the time went (`Outcome.timings` of fencesweep.study.sweep.run_sweep: plan
 load, compute with the workers' run and write seconds, assembly).
 
 `--orchestration-of REV` also measures, in the same run and interleaved, the same package
-with the orchestration files (ORCHESTRATION) of git revision REV: the same kernel, the
-sweep machinery before and after. `--tree DIR` measures the package in DIR (a checkout or
+with the orchestration files (ORCHESTRATION: study/, cli.py and errors.py of the layered
+package) of git revision REV, a revision of the same layout: the same kernel, the sweep
+machinery before and after. `--tree DIR` measures the package in DIR (a checkout or
 an exported snapshot) instead of this checkout.
 
     python benchmarks/throughput.py [--spec sweeps/b2k2.yaml] [--repeat 3] [--orchestration-of REV] [--no-cold]
@@ -42,15 +43,29 @@ import psutil
 
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLE_EVERY = 0.5  # seconds between memory samples
-ORCHESTRATION = ("fencesweep/sweep.py", "fencesweep/spec.py", "fencesweep/store.py", "fencesweep/cli.py",
-                 "fencesweep/errors.py")
+#: the orchestration files (the sweep machinery around the kernel) of each layout of the package; a
+#: folder stands for every file in it
+ORCHESTRATION = {"layered": ("fencesweep/study", "fencesweep/cli.py", "fencesweep/errors.py"),
+                 "flat": ("fencesweep/sweep.py", "fencesweep/spec.py", "fencesweep/store.py", "fencesweep/cli.py",
+                          "fencesweep/errors.py")}
+
+
+def layout(files) -> str:
+    """'layered' (sub-packages kernel/, model/, study/, ...) or 'flat' (fencesweep/sweep.py, ...), from the
+    package's file paths relative to its checkout."""
+    return "layered" if any(str(f).startswith("fencesweep/study/") for f in files) else "flat"
 
 #: the CLI, run as `python -c DRIVER grid ...`: exactly `fencesweep grid ...`, plus the import
 #: time and run_sweep's Outcome (seconds, timings) written as JSON to $FENCESWEEP_BENCH_OUT
 DRIVER = """
 import json, os, sys, time
 t0 = time.perf_counter()
-from fencesweep import cli, sweep
+import fencesweep
+if os.path.isdir(os.path.join(os.path.dirname(fencesweep.__file__), "study")):  # the layered package
+    from fencesweep import cli
+    from fencesweep.study import sweep
+else:  # the flat package of older revisions
+    from fencesweep import cli, sweep
 imports = time.perf_counter() - t0
 real = sweep.run_sweep
 def run_sweep(*a, **k):
@@ -64,7 +79,20 @@ sys.exit(cli.main(sys.argv[1:]))
 
 
 def clear_cache(tree: Path) -> int:
+    """Remove the compiled kernels of the package in `tree`, so that its next run compiles them: the
+    kernel cache directory of the layered package (kernel/cache.py DIR, under NUMBA_CACHE_DIR when
+    that is set, else in the package's __pycache__; with its compiled-* markers, which would
+    otherwise say the kernels are warm) and every Numba cache file inside the package. Returns the
+    number of files removed."""
     n = 0
+    env = dict(os.environ, PYTHONPATH=str(tree))
+    where = subprocess.run([sys.executable, "-c", "from fencesweep.kernel import cache; print(cache.DIR)"],
+                           cwd=tree, env=env, capture_output=True, text=True)
+    if where.returncode == 0 and where.stdout.strip():  # (a flat package, or an early layered one: no DIR)
+        cache_dir = Path(where.stdout.strip())
+        if cache_dir.is_dir():
+            n += sum(1 for f in cache_dir.rglob("*") if f.is_file())
+            shutil.rmtree(cache_dir)
     for pattern in ("*.nbi", "*.nbc"):
         for f in (tree / "fencesweep").rglob(pattern):
             f.unlink()
@@ -133,17 +161,29 @@ def run(tree: Path, spec: str, jobs: int, out: Path) -> dict:
 
 
 def with_orchestration_of(rev: str, tree: Path, where: Path) -> Path:
-    """A copy of `tree` (its package and the spec) whose ORCHESTRATION files are those of git revision `rev`."""
+    """A copy of `tree` (its package and the spec) whose ORCHESTRATION files are those of git revision `rev`
+    (both of one layout: the files of the other do not fit the package)."""
+    rev_files = subprocess.run(["git", "ls-tree", "-r", "--name-only", rev, "fencesweep"], cwd=ROOT, check=True,
+                               capture_output=True, text=True).stdout.split()
+    kind = layout(p.relative_to(tree).as_posix() for p in (tree / "fencesweep").rglob("*.py"))
+    if layout(rev_files) != kind:
+        raise SystemExit(f"--orchestration-of {rev}: that revision's package is {layout(rev_files)}, the one "
+                         f"measured ({tree}) {kind}; its orchestration files do not fit it")
     copy = where / f"orchestration-{rev}"
     shutil.copytree(tree / "fencesweep", copy / "fencesweep", ignore=shutil.ignore_patterns("__pycache__"))
     shutil.copytree(tree / "sweeps", copy / "sweeps")
-    for name in ORCHESTRATION:
-        text = subprocess.run(["git", "show", f"{rev}:{name}"], cwd=ROOT, capture_output=True, text=True)
-        target = copy / name
-        if text.returncode == 0:
+    for entry in ORCHESTRATION[kind]:
+        if (copy / entry).is_dir():  # a folder: exactly the revision's files in it
+            shutil.rmtree(copy / entry)
+        names = [f for f in rev_files if f == entry or f.startswith(entry + "/")]
+        if not names:  # not in that revision
+            (copy / entry).unlink(missing_ok=True)
+        for name in names:
+            text = subprocess.run(["git", "show", f"{rev}:{name}"], cwd=ROOT, check=True, capture_output=True,
+                                  text=True)
+            target = copy / name
+            target.parent.mkdir(parents=True, exist_ok=True)
             target.write_text(text.stdout)
-        else:  # not in that revision
-            target.unlink(missing_ok=True)
     return copy
 
 

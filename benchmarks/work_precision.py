@@ -393,6 +393,11 @@ def write_pages(df: pd.DataFrame, args, out: Path) -> None:
             f"step_factor (tolerance {numerics.TOL:g} x step_factor^{numerics.TOL_EXPONENT:g}), the RK4 "
             "baseline's fixed step dt [s], the rtol of LSODA and of solve_ivp.", "",
             md_table(summary.drop(columns="knob")), "", *[p + "\n" for p in prose(summary, df, ref_rtol)]]
+    import verification  # benchmarks/: the section on a table's own check, and its figure
+
+    checked = verification.measure()
+    text += ["", *verification.section(checked, verification.main_job_record())]
+    verification.plot(checked, out / "figures" / "verification.png")
     (out / "work_precision.md").write_text("\n".join(text).rstrip() + "\n")
     print("\n".join(text))
     plot(summary, df, out / "figures" / "work_precision.png")

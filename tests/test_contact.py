@@ -110,3 +110,21 @@ def test_linear_law_freefall_peak_is_the_jump_when_overdamped():
     k_lin = derived_k_lin(15.0, 4e6, 0.3)
     expect = beta * math.sqrt(15.0 * k_lin) * drop_speed(0.3)
     assert simulate("freefall", contact_law="linear")["peak_force"] == pytest.approx(expect, rel=1e-9)
+
+
+@pytest.mark.parametrize("law", ["hertz", "linear"])
+@pytest.mark.parametrize("e, m1, H", [(0.2, 15.0, 0.3), (0.05, 2.0, 1.0), (0.9, 40.0, 0.1), (1.0, 15.0, 0.3)])
+def test_freefall_force_from_the_dimensionless_peak_matches_the_freefall_scene(law, e, m1, H):
+    """docs/model.md (7.7): the overload's reference, a force scale times n(e) solved once per
+    (e, law) with SciPy, equals the freefall scene's own integration of (7.2) with the engine."""
+    from fencesweep.model.prepare import freefall_force
+
+    scene = simulate("freefall", e=e, m1=m1, H=H, contact_law=law)["peak_force"]
+    assert freefall_force(m1, 4e6, e, law, None, H) == pytest.approx(scene, rel=1e-8)
+
+
+def test_undamped_freefall_force_is_the_hertz_closed_form():
+    from fencesweep.model.prepare import freefall_force
+
+    assert freefall_force(15.0, 4e6, 1.0, "hertz", None, 0.3) == pytest.approx(
+        hertz_peak(15.0, 4e6, drop_speed(0.3)), rel=1e-9)  # (7.4)

@@ -1,4 +1,4 @@
-"""Values solved once per input and kept beside the compiled kernels (fencesweep/_cache.solved)."""
+"""Values solved once per input and kept beside the compiled kernels (fencesweep/kernel/cache.py solved)."""
 import math
 
 import pytest

@@ -88,15 +88,6 @@ def _register() -> None:
 _register()
 
 
-def _register_locator() -> None:
-    impl = getattr(caching, "CacheImpl", None) or caching._CacheImpl
-    if KernelLocator not in impl._locator_classes:
-        impl._locator_classes.insert(0, KernelLocator)
-
-
-_register_locator()
-
-
 #: True when NUMBA_DISABLE_JIT=1: the decorators return the plain Python functions
 JIT_DISABLED = bool(numba.config.DISABLE_JIT)
 

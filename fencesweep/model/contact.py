@@ -1,7 +1,7 @@
 """Contact and friction laws (docs/model.md §4, §5, §6) and their closed forms (§7).
 
 Compiled pieces (one formula each) are used inside the kernels. The damping coefficient
-solved from e lives in calibrate.py (it runs the impact scene).
+solved from e lives in calibrate.py.
 """
 from __future__ import annotations
 
@@ -80,6 +80,16 @@ def pulse_time(law, m, kc, speed):
     if law == Lp.LAW_HERTZ:
         return 3.2181 * (m * m / (kc * kc * max(speed, 1e-9))) ** 0.2
     return math.pi * math.sqrt(m / kc)
+
+
+def wall_force_scale(m1: float, k: float, v0: float, law: int) -> float:
+    """The force scale [N] of a rigid-wall impact of mass m1 at speed v0 (docs/model.md (7.7)), in
+    which the dimensionless impact (4.5) / (4.6) is written: k1 D*^1.5 with D* = (m1 v0^2 / k1)^0.4
+    (hertz), k_lin D* with D* = v0 sqrt(m1 / k_lin) (linear)."""
+    if law == Lp.LAW_HERTZ:
+        d = (m1 * v0 * v0 / k) ** 0.4
+        return k * d * math.sqrt(d)
+    return k * v0 * math.sqrt(m1 / k)
 
 
 def drop_speed(H: float) -> float:

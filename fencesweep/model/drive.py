@@ -128,7 +128,7 @@ def _beta_unwrapped(theta: float, a: float, b: float, d: float, ref: float) -> f
 @lru_cache(maxsize=256)
 def crank_rocker_geometry(swing: float, coupler_ratio: float) -> tuple[float, float, float, float, float]:
     """(a, b, d, theta0, beta0): link lengths and the crank angle of minimum rocker angle, solved
-    once per (swing, coupler_ratio) and kept beside the compiled kernels (_cache.solved)."""
+    once per (swing, coupler_ratio) and kept beside the compiled kernels (kernel/cache.py solved)."""
     key = (float(swing), float(coupler_ratio))
     return solved("crank_rocker_geometry", key, lambda: solve_crank_rocker_geometry(*key))
 

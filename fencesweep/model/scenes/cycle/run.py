@@ -21,10 +21,10 @@ from fencesweep.kernel.jit import kernel
 from fencesweep.model import layout as Lp
 from fencesweep.model import results as Rs
 from fencesweep.model.contact import pulse_time
-from fencesweep.model.scenes.contacts import N_SLOTS
+from fencesweep.model.scenes.contacts import APART, N_SLOTS, RAIL0, TIP
 from fencesweep.model.scenes.cycle.books import after_step, at_t_c, count_stage_time, record, time_out
 from fencesweep.model.scenes.cycle.events import event_state, find_event
-from fencesweep.model.scenes.cycle.layout import (IW_LOAD, A_DMAX, A_EXITED, A_QMAX, A_STATUS, AX_DMAX, N_Q, N_STATE, QV_0,
+from fencesweep.model.scenes.cycle.layout import (IW_CODE, IW_LOAD, A_DMAX, A_EXITED, A_QMAX, A_STATUS, AX_DMAX, N_Q, N_STATE, QV_0,
                                                   QV_1)
 from fencesweep.model.scenes.cycle.peaks import quantities, quantities_from_aux, record_peaks, track_maxima
 from fencesweep.model.scenes.cycle.rhs import rhs, step
@@ -47,11 +47,25 @@ def onset_step(p, w, h_next):
 
 
 @kernel(inline=True)
+def light_fence_contact(w):
+    """Is the load letting go of the fence slowly: its deepest fence contact less than
+    numerics.LIGHT_DEPTH position tolerances (TOL l) deep and opening at the step's start
+    (docs/model.md (15.14))?"""
+    deepest = -1.0
+    opening = True
+    for k in range(N_SLOTS):
+        if (k < RAIL0 or k == TIP) and w.iw[IW_CODE + k] != APART and -w.g0[k] > deepest:
+            deepest = -w.g0[k]
+            opening = w.r0[k] >= 0.0
+    return opening and deepest >= 0.0 and deepest < NU.LIGHT_DEPTH * w.atol0[0]
+
+
+@kernel(inline=True)
 def set_tolerance(p, w):
     """The tolerances of the next step (docs/model.md (15.14); numerics.APPROACH_TOL, FREE_TOL
-    say why): the run's, times APPROACH_TOL while the load is on the belt and touches nothing,
-    times FREE_TOL for a free fence."""
-    s = NU.APPROACH_TOL if w.iw[IW_LOAD] != 0 and not in_contact(w.iw) else 1.0
+    say why): the run's, times APPROACH_TOL while the load is on the belt and touches nothing
+    or lets go of the fence slowly, times FREE_TOL for a free fence."""
+    s = NU.APPROACH_TOL if w.iw[IW_LOAD] != 0 and (not in_contact(w.iw) or light_fence_contact(w)) else 1.0
     if int(p[Lp.DRIVE]) == Lp.DRIVE_FREE:
         s = min(s, NU.FREE_TOL)
     for i in range(N_STATE):
