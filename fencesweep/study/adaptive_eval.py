@@ -17,7 +17,6 @@ import hashlib
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 import pyarrow as pa
@@ -35,11 +34,13 @@ JUDGED = ("outcome", "overload", "deflection_max", "residual_amplitude")
 
 @dataclass
 class Task:
-    """One element to simulate: its scenes in the order its loads run, and their predictions."""
+    """One element to simulate: its scenes in the order its loads run, their predictions and,
+    per position, the smallest prediction of the loads after it (adaptive_loads.following)."""
 
     element: int
     scenes: np.ndarray
     predictions: np.ndarray
+    following: np.ndarray
 
 
 def run_tasks(c: int, tasks: list, path: str | None, meta: dict, limits: E.Limits, rule: AL.LoadRule,
@@ -59,8 +60,7 @@ def run_tasks(c: int, tasks: list, path: str | None, meta: dict, limits: E.Limit
             dlim = vals["dalpha_perm"] if limits.deflection_max is None else limits.deflection_max
             margin = AL.load_margin(res, dlim, limits)
             smallest = min(smallest, margin)
-            following = task.predictions[i + 1] if i + 1 < len(task.scenes) else math.inf
-            if AL.stop(margin, smallest, following, rule):
+            if AL.stop(margin, smallest, task.following[i], rule):
                 break
     if path is None:
         return c, rows, scenes, len(tasks)
@@ -99,10 +99,10 @@ class Evaluator:
         out, n = [], self.lay.n_loads
         for e, r in zip(ids, refs):
             ref_values = np.array([self.values[int(x)] for x in r if x >= 0]).reshape(-1, n)
-            pred, low = AL.predictions(ref_values, self.rule.kappa)
-            loads = AL.order(pred, low, self.broke)
+            pred, low, key = AL.predictions(ref_values, self.rule.kappa)
+            loads = AL.order(key, low, self.broke)
             scenes = self.lay.scenes(np.full(n, e), loads) if self.lay.mode == "envelope" else self.lay.scenes([e])
-            out.append(Task(int(e), scenes, pred[loads]))
+            out.append(Task(int(e), scenes, pred[loads], AL.following(pred[loads])))
         return out
 
     def chunks(self, tasks: list) -> list:
@@ -185,11 +185,13 @@ class Evaluator:
             vals = np.full(self.lay.n_loads, np.nan)
             mine = ran.get(t.element, {})
             loads = [int(x) for x in self.lay.element_of(t.scenes)[1]]
-            for k, p in zip(loads, t.predictions):
-                vals[k] = mine.get(k, p)  # a load not run has its prediction
-            self.values[t.element] = vals
             skipped = len(loads) - len(mine)
             broken = any(m < 0 for m in mine.values())
+            for k, p in zip(loads, t.predictions):
+                # a load not run: its prediction (safe) when the element stopped feasible; unknown
+                # (NaN) when it stopped at a broken constraint
+                vals[k] = mine.get(k, np.nan if broken else p)
+            self.values[t.element] = vals
             self.stats["stopped"] += int(broken and skipped > 0)
             self.stats["predicted"] += int(not broken and skipped > 0)
             self.stats["loads_predicted"] += 0 if broken else skipped

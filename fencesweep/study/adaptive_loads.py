@@ -6,14 +6,17 @@ exactly when the element's min_margin over all its loads would be, envelope.fini
 loads run in the order most likely to break one, and the element stops at the first that does.
 
 * Order. The element's reference elements (the simulated corners of the cell it lies in,
-  adaptive.Refiner) have per-load margins (measured, or predicted when they skipped the load).
-  A load's prediction is the smallest reference margin minus `kappa` x their spread (clipped to
-  [-1, 1]; -inf when a reference has no value for it: a reference stopped before it). Loads
-  run by prediction, then by their smallest reference margin, then by how often they broke a
-  constraint in the elements simulated so far, then by index (the coarse pass, which has no
-  references, runs the loads by how often they broke one, then by index).
-* Stop. After each load: stop if it broke a constraint (infeasible); stop if the next load's
-  prediction (and so every later one's) is at least `theta` and at least the element's smallest
+  adaptive.Refiner) have per-load margins (measured, or predicted when they skipped the load;
+  NaN when a reference stopped before it). From the values known, a load's order key is the
+  smallest reference margin minus `kappa` x their spread (clipped to [-1, 1]; 0, "unknown",
+  where no reference has a value): a load that broke a constraint at a reference runs first.
+  Loads run by that key, then by their smallest reference margin, then by how often they broke
+  a constraint in the elements simulated so far, then by index (the coarse pass, which has no
+  references, runs the loads by how often they broke one, then by index). A load's prediction,
+  for the stop, is the same but -inf where any reference lacks a value (nothing is predicted
+  from a neighbour that did not run the load).
+* Stop. After each load: stop if it broke a constraint (infeasible); stop if the smallest
+  prediction of the loads left is at least `theta` and at least the element's smallest
   margin so far plus `delta` (feasible: the loads left are predicted to break nothing, and to
   leave its min_margin and binding constraint as they are). Otherwise run the next load.
 
@@ -62,31 +65,43 @@ def load_margin(res: dict, dlim: float, limits: E.Limits) -> float:
 
 
 def predictions(ref_values: np.ndarray, kappa: float) -> tuple:
-    """(prediction, smallest reference margin) per load from the references' values [R, L]
-    (NaN: no value). A load without a value at every reference has prediction -inf."""
+    """(prediction, smallest reference margin, order key) per load from the references' values
+    [R, L] (NaN: no value), module docstring."""
     n = ref_values.shape[1]
     if ref_values.shape[0] == 0:
-        return np.full(n, -np.inf), np.full(n, np.inf)
+        return np.full(n, -np.inf), np.full(n, np.inf), np.zeros(n)
     v = np.clip(ref_values, -1.0, 1.0)
     missing = np.isnan(v).any(axis=0)
+    known = ~np.isnan(v).all(axis=0)
     low = np.where(np.isnan(v), np.inf, v).min(axis=0)
     high = np.where(np.isnan(v), -np.inf, v).max(axis=0)
-    pred = np.where(missing, -np.inf, low - kappa * (high - low))
-    return pred, low
+    key = np.where(known, low - kappa * (high - low), 0.0)
+    pred = np.where(missing, -np.inf, key)
+    return pred, low, key
 
 
-def order(pred: np.ndarray, low: np.ndarray, broke: np.ndarray) -> np.ndarray:
+def order(key: np.ndarray, low: np.ndarray, broke: np.ndarray) -> np.ndarray:
     """The loads in the order they run (module docstring); broke: per load, the elements whose
     cycle broke a constraint so far."""
-    n = len(pred)
-    return np.lexsort((np.arange(n), -broke, low, pred))
+    n = len(key)
+    return np.lexsort((np.arange(n), -broke, low, key))
 
 
-def stop(margin: float, smallest: float, next_prediction: float, rule: LoadRule) -> str | None:
-    """After a load with `margin` (the element's smallest so far `smallest`): 'broken', 'predicted'
-    (the loads left are predicted safe) or None (run the next)."""
+def following(pred: np.ndarray) -> np.ndarray:
+    """Per position of loads in running order (their predictions `pred`), the smallest
+    prediction of the loads after it (inf after the last): what stop() compares."""
+    out = np.full(len(pred), np.inf)
+    if len(pred) > 1:
+        out[:-1] = np.minimum.accumulate(pred[::-1])[::-1][1:]
+    return out
+
+
+def stop(margin: float, smallest: float, left: float, rule: LoadRule) -> str | None:
+    """After a load with `margin` (the element's smallest so far `smallest`; `left` the smallest
+    prediction of the loads left): 'broken', 'predicted' (the loads left are predicted safe) or
+    None (run the next)."""
     if margin < 0.0:
         return "broken"
-    if rule.predict and next_prediction >= max(rule.theta, smallest + rule.delta):
+    if rule.predict and left >= max(rule.theta, smallest + rule.delta):
         return "predicted"
     return None

@@ -47,7 +47,7 @@ from fencesweep.study import verify as V
 from fencesweep.study.adaptive_eval import Evaluator
 from fencesweep.study.progress import bar as progress_bar
 
-VERSION = 1  # of the refinement and its rules; in the work directory's salt
+VERSION = 2  # of the refinement and its rules; in the work directory's salt
 FINAL_CHUNK = 2_000  # cycles per chunk of the final Plan (what verify and assemble read)
 PER_CYCLE = 2e-3  # seconds per cycle assumed before any is timed (whether to start workers)
 
