@@ -160,6 +160,9 @@ def add_grid_parser(sub) -> argparse.ArgumentParser:
     check.add_argument("--no-verify", action="store_true", help="no verification")
     g.add_argument("--wait", action="store_true",
                    help="if another run is writing the same output, wait for it (default: refuse at once)")
+    g.add_argument("--adaptive", action="store_true",
+                   help="an envelope study or a grid with cases: simulate the design points where the verdict "
+                        "changes, infer the rest (sweeps/README.md, Adaptive maps); writes SPEC-output_adaptive.parquet")
     g.add_argument("--quiet", action="store_true", help="no progress bar and no summary (warnings are still shown)")
     g.set_defaults(func=cmd_grid)
     return g
@@ -198,13 +201,17 @@ def cmd_grid(args: argparse.Namespace) -> int:
         est = api.estimate(args.spec, out=args.out, jobs=args.jobs, resume=not args.no_resume, backend=args.backend,
                            overwrite=args.overwrite, progress=not args.quiet, verify=verify, log=say)
         print("\n".join(est.lines()))
+        if args.adaptive:
+            print("--adaptive runs a part of these, known only as the map refines (sweeps/README.md, Adaptive maps): "
+                  "the estimate above is the full grid's, an upper bound")
         return 0
     try:
         with warnings.catch_warnings():  # a failed verification's warning: printed below, as lines
             warnings.simplefilter("ignore", verify_warning())
             run = api.run_grid(args.spec, out=args.out, jobs=args.jobs, resume=not args.no_resume,
                                backend=args.backend, scheduler=args.scheduler, progress=not args.quiet,
-                               overwrite=args.overwrite, verify=verify, wait=args.wait, log=say)
+                               overwrite=args.overwrite, verify=verify, wait=args.wait, adaptive=args.adaptive,
+                               log=say)
     except api.SweepInterrupted as exc:
         print(f"fencesweep: {exc.saved_text}; run the same command again to finish", file=sys.stderr)
         return 130
@@ -237,14 +244,26 @@ def _grid_summary(run: dict, say) -> None:
         say(f"warning: {run['failed_runs']} scenes raised in the engine; their status is 'failed: exception ...'")
     if run["points"] is not None:
         say(_points_line(run["points"]))
+    if run.get("adaptive") is not None:
+        say(_adaptive_line(run["adaptive"]))
 
 
 def _points_line(pts: dict) -> str:
     """An envelope sweep's per-design-point table in one line: its size, the feasible points, the best one."""
     label = ", ".join(f"{c} = {v:g}" if isinstance(v, float) else f"{c} = {v}" for c, v in pts["best"].items())
+    kept = ("are ok (scraped, overload <= 1, deflection within the limit)" if pts.get("verdict") == "ok"
+            else "keep every constraint for every load")
     return (f"wrote {pts['path']}: {pts['design_points']} design points x {pts['loads']} loads; "
-            f"{pts['feasible']} keep every constraint for every load; largest smallest margin {pts['min_margin']:.3f}"
+            f"{pts['feasible']} {kept}; largest smallest margin {pts['min_margin']:.3f}"
             + (f" at {label}" if label else "") + f" (binding: {pts['binding']})")
+
+
+def _adaptive_line(rec: dict) -> str:
+    """An adaptive map's cost against the full grid's, and what was inferred."""
+    from fencesweep.study.adaptive_run import per_cycle_note
+
+    return (f"adaptive map: {per_cycle_note(rec)}; {rec['simulated']} of {rec['design_points']} design points "
+            f"simulated, {rec['inferred']} inferred (the points table's `sampled` column says which)")
 
 
 def add_design_parser(sub) -> argparse.ArgumentParser:

@@ -130,7 +130,8 @@ def _out(spec: S.Spec, out: Any) -> Path:
 
 def grid(spec: Any, *, out: str | Path | None = None, jobs: int | None = None, resume: bool = True,
          progress: bool = False, backend: str = "loky", scheduler: str | None = None, overwrite: bool = False,
-         verify: bool | int | None = None, wait: bool = False, log: Callable[[str], None] | None = None):
+         verify: bool | int | None = None, wait: bool = False, adaptive: bool = False,
+         log: Callable[[str], None] | None = None):
     """Run the sweep of `spec` into `out` (default: the spec's output) and return its table, read
     back from the Parquet file: row for row what `fencesweep grid` writes.
 
@@ -141,9 +142,13 @@ def grid(spec: Any, *, out: str | Path | None = None, jobs: int | None = None, r
     N runs; False: none. `wait`: wait for another run writing `out` instead of raising UsageError.
     df.attrs: "units" ({column: unit}), "fencesweep" (the provenance: spec, hash, versions,
     counts, "verify" the verification's record), "run" (run_grid's record) and, for a spec with
-    an envelope, "points_path" (the per-design-point table: points(df) reads it)."""
+    an envelope, "points_path" (the per-design-point table: points(df) reads it).
+
+    `adaptive`: an adaptive map instead of the full grid (adaptive_run.py; an envelope study or
+    a grid with cases): the table has one row per cycle run, the points table (points(df)) every
+    design point of the full grid with `sampled`; default out SPEC-output_adaptive.parquet."""
     run = run_grid(spec, out=out, jobs=jobs, resume=resume, progress=progress, backend=backend,
-                   scheduler=scheduler, overwrite=overwrite, verify=verify, wait=wait, log=log)
+                   scheduler=scheduler, overwrite=overwrite, verify=verify, wait=wait, adaptive=adaptive, log=log)
     df = store.read_table(run["out"])
     df.attrs["run"] = run
     if run["points"] is not None:
@@ -161,7 +166,8 @@ def _check_verify(verify: Any) -> None:
 
 def run_grid(spec: Any, *, out: str | Path | None = None, jobs: int | None = None, resume: bool = True,
              progress: bool = False, backend: str = "loky", scheduler: str | None = None, overwrite: bool = False,
-             verify: bool | int | None = None, wait: bool = False, log: Callable[[str], None] | None = None) -> dict:
+             verify: bool | int | None = None, wait: bool = False, adaptive: bool = False,
+             log: Callable[[str], None] | None = None) -> dict:
     """grid without reading the table back: run the sweep (and, for an envelope, write the
     per-design-point table) and return what the run did, a plain dict: out, scenes, model_runs,
     chunks, chunks_computed, chunks_reused, seconds, jobs (None: Dask), failed_runs (runs that
@@ -169,13 +175,16 @@ def run_grid(spec: Any, *, out: str | Path | None = None, jobs: int | None = Non
     record, as in the table's metadata; None without one) and points (None, or for an envelope its
     path, design_points, loads, feasible, and the best point: min_margin, binding, best
     {column: value}). A failed verification also issues a verify.VerificationWarning. A file that
-    cannot be written (a full disk) raises SweepWriteError (an OSError) saying what was kept."""
+    cannot be written (a full disk) raises SweepWriteError (an OSError) saying what was kept.
+    With `adaptive`, also "adaptive": the map's record (cycles run against the full grid's)."""
     log = log or _nothing
     _check_out(out)
     _check_jobs(jobs)
     _check_backend(backend, scheduler)
     _check_verify(verify)
     sp = load_spec(spec)
+    if adaptive:
+        return _run_adaptive(sp, out, jobs, resume, backend, scheduler, progress, overwrite, verify, wait, log)
     out = _out(sp, out)
     _note_skipped_loads(sp, log)
     try:
@@ -194,6 +203,29 @@ def run_grid(spec: Any, *, out: str | Path | None = None, jobs: int | None = Non
     return {"out": str(res.out), "scenes": res.n_scenes, "model_runs": res.n_models, "chunks": res.n_chunks,
             "chunks_computed": res.computed, "chunks_reused": res.reused, "seconds": res.seconds, "jobs": res.jobs,
             "failed_runs": res.failed_runs, "timings": dict(res.timings), "verify": res.verify, "points": points}
+
+
+def _run_adaptive(sp: S.Spec, out, jobs, resume, backend, scheduler, progress, overwrite, verify, wait, log) -> dict:
+    """run_grid of an adaptive map (adaptive_run.run_adaptive): the same record, and "adaptive"."""
+    from fencesweep.study import adaptive_run as AR
+
+    out = Path(out) if out is not None else AR.default_output(sp)
+    _note_skipped_loads(sp, log)
+    try:
+        res = AR.run_adaptive(sp, out, jobs=jobs, resume=resume, backend=backend, scheduler=scheduler,
+                              progress=progress, log=log, overwrite=overwrite, verify=verify, wait=wait)
+    except KeyboardInterrupt:
+        raise SweepInterrupted(*AR.saved_chunks(sp, out)) from None
+    except WriteError as exc:
+        raise SweepWriteError(exc, *AR.saved_chunks(sp, out)) from None
+    if res.verify is not None:
+        V.warn(res.verify)
+    cycles = res.record["cycles"]
+    return {"out": str(res.out), "scenes": cycles, "model_runs": cycles,
+            "chunks": res.chunks_computed + res.chunks_reused, "chunks_computed": res.chunks_computed,
+            "chunks_reused": res.chunks_reused, "seconds": res.seconds, "jobs": res.jobs,
+            "failed_runs": res.failed_runs, "timings": dict(res.timings), "verify": res.verify,
+            "points": res.points, "adaptive": res.record}
 
 
 def _plain(value: Any) -> Any:

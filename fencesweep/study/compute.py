@@ -43,6 +43,11 @@ START_METHOD = "fork" if sys.platform.startswith("linux") else "loky"
 _SHARED: tuple | None = None
 
 
+def shared(given: tuple | None) -> tuple:
+    """(spec, simulate) of a call: the one it was given, else the one its pool worker holds."""
+    return given or _SHARED
+
+
 def _run_chunk(c: int, ids: range, rows: np.ndarray, path: str | None, meta: dict,
                shared: tuple | None = None) -> tuple:
     """Run one chunk: resolve its scenes `rows` (one per model run `ids`), run them and, with

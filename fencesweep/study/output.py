@@ -70,11 +70,12 @@ def _spec_label(path: str | None, spec_hash: str) -> str:
     return f"{path} (spec hash {spec_hash[:12]})" if path else f"a spec with hash {spec_hash[:12]}"
 
 
-def check_output(spec: S.Spec, out: Path) -> None:
+def check_output(spec: S.Spec, out: Path, adaptive: bool = False) -> None:
     """Refuse (UsageError, naming both specs) to destroy another spec's results at `out`: the
     table there, or the saved chunks of its unfinished run in OUT.partial/. The same spec's
     table is replaced by a rerun and its chunks are resumed; chunks of the same spec from
-    another engine can never be reused and are removed."""
+    another engine can never be reused and are removed. A full grid and an adaptive map
+    (`adaptive`: the run is one) of the same spec do not replace each other either."""
     this = _spec_label(spec.path, spec.hash)
     if out.exists():
         try:
@@ -89,6 +90,10 @@ def check_output(spec: S.Spec, out: Path) -> None:
             that = _spec_label(meta.get("spec_path"), meta["spec_hash"])
             raise UsageError(f"{out} holds the results of another spec, {that}; this is {this}. Not replacing "
                              f"it: choose another --out, or add --overwrite to replace it")
+        if ("adaptive" in meta) != adaptive:
+            kind, other = ("the full grid", "an adaptive map") if adaptive else ("an adaptive map", "the full grid")
+            raise UsageError(f"{out} holds {kind} of {this}; not replacing it with {other}: choose another --out "
+                             f"(--adaptive writes SPEC-output_adaptive.parquet by default), or add --overwrite")
     root = work_root(out)
     for work in sorted(root.iterdir()) if root.is_dir() else ():
         try:

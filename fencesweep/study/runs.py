@@ -68,6 +68,13 @@ def _warm_rows(spec: S.Spec, rows: Iterable[int], fn: Callable) -> None:
                                f"{type(exc).__name__}: {exc}") from exc
 
 
+def warm_scenes(spec: S.Spec, rows: Iterable[int], simulate: Callable | None = None) -> float:
+    """Run the scenes `rows` in this process (loading the kernels, as warm_up does); the seconds."""
+    t0 = time.perf_counter()
+    _warm_rows(spec, rows, simulate or engine())
+    return time.perf_counter() - t0
+
+
 def warm_up(plan: Plan, simulate: Callable | None = None) -> float:
     """Run one model of each variant (scene, drive, law, profile) of a plan in this process.
 
