@@ -73,7 +73,7 @@ def _header(I: ReportInputs) -> list[str]:
         L.append(f"(This file was written {time.time() - float(start):.0f} s after that command started, on "
                  f"{os.cpu_count()} cores, {platform.system()}.)")
     L += [f"Engine: {_provenance(I.res)}. Paper: Piatkowski & Sempruch, *Active fence with flexible element in a "
-          "drive system* (`shared/seed/active-fence-paper.txt`); the physics contract is MODEL.md. Unless a row "
+          "drive system* (`shared/seed/active-fence-paper.txt`); the physics is docs/model.md. Unless a row "
           f"says otherwise: t_c = {p['t_c']:g} s, v = {p['v']:g} m/s, R_s = {p['R_s']:g}, m1 = {p['m1']:g} kg, "
           f"m2 = {p['m2']:g} kg, e = {p['e']:g}, {law} law, flexible element B2 = {p['B2']:g} N m s/rad, K2 = {p['K2']:g} N m/rad.", ""]
     return L

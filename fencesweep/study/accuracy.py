@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 
-#: MODEL.md asks two independent implementations of the model to agree to 1e-3 (relative,
+#: docs/model.md (15.15) asks two independent implementations of the model to agree to 1e-3 (relative,
 #: with the floors below): a result that moves by more when the tolerance is tightened is not
 #: the model's answer to that bound. The verification's threshold (verify.THRESHOLD).
 AGREEMENT = 1e-3
@@ -18,7 +18,7 @@ AGREEMENT = 1e-3
 #: ten times better than AGREEMENT, a margin over the specification.
 ENGINE_TARGET = 1e-4
 
-#: Floor of the force scale [fraction of the scene's freefall_force, MODEL.md §7]: a scene whose
+#: Floor of the force scale [fraction of the scene's freefall_force, docs/model.md §7]: a scene whose
 #: peak force is 0 (no contact) or a few N (a graze, a load resting on the fence) is judged on
 #: the scale of the forces that matter for its overload, not relative to ~0. The overload (a
 #: force in units of freefall_force) has the same floor.
@@ -50,7 +50,7 @@ QUANTITIES = {
 
 
 def floor(quantity: str, freefall_force: float) -> float:
-    """The floor of `quantity`'s scale (freefall_force [N]: the scene's, MODEL.md §7)."""
+    """The floor of `quantity`'s scale (freefall_force [N]: the scene's, docs/model.md §7)."""
     kind = KINDS[quantity]
     if kind == "force":
         return FORCE_FLOOR * abs(freefall_force)
@@ -71,7 +71,7 @@ def floor_text(quantity: str) -> str:
 
 
 def relative_difference(value: float, other: float, quantity: str, freefall_force: float) -> float:
-    """|other - value| / max(|value|, floor): `value` is the one judged (the table's, the
+    """|other - value| / max(|value|, floor), docs/model.md (15.15): `value` is the one judged (the table's, the
     reference's). NaN when either is NaN; 0 when both are the same infinity."""
     if value == other:
         return 0.0

@@ -14,7 +14,7 @@ record goes into the table's schema metadata (`fencesweep.verify`), the summary 
   outcomes agree), with the floors the validation uses; outcomes that differ are counted; a
   result defined in one and undefined (NaN) in the other counts as `undefined`.
 * The verdict: `ok` false when a difference exceeds THRESHOLD (accuracy.AGREEMENT, 1e-3: the
-  bound MODEL.md sets for two implementations of the model), an outcome differs or a result
+  bound of docs/model.md (15.15) for two implementations of the model), an outcome differs or a result
   is undefined in only one of the two.
 
 The record depends only on the table and the spec (no times, no counts of jobs), so a resumed
@@ -105,7 +105,7 @@ def _rows(col, rows: list) -> list:
 
 
 def _freefall(vals: dict, row: dict) -> float:
-    """The scene's free-fall force [N] (MODEL.md §7), the scale of its force floors: the table's
+    """The scene's free-fall force [N] (docs/model.md §7), the scale of its force floors: the table's
     column for a cycle, computed for an impact (the free fall's is its own peak force)."""
     if "freefall_force" in row:
         values = [x for x in np.atleast_1d(row["freefall_force"]) if x is not None and math.isfinite(x)]
