@@ -163,3 +163,18 @@ def test_adaptive_needs_a_map(tmp_path):
     with pytest.raises(UsageError, match="--adaptive needs an envelope study"):
         fencesweep.grid(spec, out=tmp_path / "x.parquet", adaptive=True)
     assert not (tmp_path / "x.parquet").exists()
+
+
+def test_the_cli_writes_what_the_api_returns(small_runs, capsys):
+    import yaml
+
+    from fencesweep import cli
+    from fencesweep.study import store
+
+    tmp, _, ad = small_runs
+    spec = tmp / "small.yaml"
+    spec.write_text(yaml.safe_dump(SMALL, sort_keys=False))
+    out = tmp / "cli.parquet"
+    assert cli.main(["grid", str(spec), "--adaptive", "--out", str(out), "--jobs", "1", "--no-verify"]) == 0
+    assert "adaptive map:" in capsys.readouterr().err
+    assert store.read_table(out).equals(ad)
