@@ -103,7 +103,7 @@ def graze_theta(p, w, t, h):
     return best, slot
 
 
-@kernel()
+@kernel(inline=True)
 def find_event(p, w, t, h, exited):
     """First event inside the step [t, t + h] on its dense output: (theta just past it, kind)
     with kind 0 none (theta = 1), 1 a contact change or graze, 2 scraped, 3 escaped. The ends

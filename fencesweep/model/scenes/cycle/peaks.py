@@ -160,7 +160,7 @@ def judge_forces(p, w, t, h, theta_end):
     quantities(t + (theta_end - d) * h, w.tmp, p, w.iw, w.auxs, w.dy, qb, True)
 
 
-@kernel()
+@kernel(inline=True)
 def track_maxima(p, w, t, h, theta_end):
     """Running maxima of the tracked quantities over the step [t, t + theta_end h]: the end
     samples, and an interior maximum, located by Brent's search on the dense output
@@ -207,7 +207,7 @@ def track_maxima(p, w, t, h, theta_end):
     rising[N_Q] = 0.0
 
 
-@kernel()
+@kernel(inline=True)
 def record_peaks(p, w, t, h, theta_end):
     """Trajectory rows at the maxima located inside the step (track_maxima's QV_THETA), in time
     order, each at the state of a step of the method to it: so that the trajectory's peaks are

@@ -114,7 +114,7 @@ def check_state(p, w):
     return w.acc[A_STATUS] == Rs.ST_OK
 
 
-@kernel()
+@kernel(inline=True)
 def accept(p, w, t, h, t1, err, h_next):
     """The cycle's handling of an accepted step [t, t1] (module docstring); the driver's hook.
     Returns (the new t, the next step, stop): stop at an outcome or a failed state."""
