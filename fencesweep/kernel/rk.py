@@ -130,7 +130,7 @@ def step(method, t, y, h, p, iw, K, tmp, y1, aux, atol, rtol, n_ctrl):
     return error_norm(K, h, y, y1, atol, rtol, n_ctrl)
 
 
-@kernel()
+@kernel(inline=True)
 def error_norm(K, h, y0, y1, atol, rtol, n_ctrl):
     """RMS over the first n_ctrl components of e_i / sc_i, with e = h sum_k E_k K_k the
     difference of the 5th- and 4th-order solutions and sc_i = atol_i + rtol max(|y0_i|, |y1_i|)
@@ -146,7 +146,7 @@ def error_norm(K, h, y0, y1, atol, rtol, n_ctrl):
     return math.sqrt(acc / n_ctrl)
 
 
-@kernel()
+@kernel(inline=True)
 def dense_coeffs(method, K, h, y0, y1, Q, n):
     """Coefficients Q[0..3] of the step's continuous extension (module docstring)."""
     if method == METHOD_RK4:

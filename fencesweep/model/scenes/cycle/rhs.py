@@ -187,7 +187,7 @@ def fence_rhs(mode, al, dal, aw, daw, tau, p, dy):
     dy[10] = drive_power(torque, daw)
 
 
-@kernel()
+@kernel(inline=True)
 def rhs(t, y, p, iw, dy, aux):
     """Right-hand side of the cycle in the mode of iw; fills dy and aux (contact forces): the
     load's (load_rhs, docs/model.md §6) and the fence's (fence_rhs, docs/model.md §3)."""
