@@ -20,6 +20,7 @@ finished are saved, and the same call again computes only the rest.
 """
 from __future__ import annotations
 
+import contextlib
 import os
 from pathlib import Path
 from typing import Any, Callable
@@ -187,22 +188,30 @@ def run_grid(spec: Any, *, out: str | Path | None = None, jobs: int | None = Non
         return _run_adaptive(sp, out, jobs, resume, backend, scheduler, progress, overwrite, verify, wait, log)
     out = _out(sp, out)
     _note_skipped_loads(sp, log)
-    try:
+    with _saying_what_is_saved(lambda: output.saved_chunks(sp, out)):
         output.check_writable(out)
         output.check_can_start(sp, out, overwrite)  # refused at once: not even the lock file is made
         with lock.one_writer(out, wait, log):  # the per-design-point table too
             res = sweep.run_sweep(sp, out, jobs=jobs, resume=resume, backend=backend, scheduler=scheduler,
                                   progress=progress, log=log, overwrite=overwrite, verify=verify, wait=wait)
             points = _write_points(sp, res.out) if sp.envelope is not None else None
-    except KeyboardInterrupt:
-        raise SweepInterrupted(*output.saved_chunks(sp, out)) from None
-    except WriteError as exc:
-        raise SweepWriteError(exc, *output.saved_chunks(sp, out)) from None
     if res.verify is not None:
         V.warn(res.verify)
     return {"out": str(res.out), "scenes": res.n_scenes, "model_runs": res.n_models, "chunks": res.n_chunks,
             "chunks_computed": res.computed, "chunks_reused": res.reused, "seconds": res.seconds, "jobs": res.jobs,
             "failed_runs": res.failed_runs, "timings": dict(res.timings), "verify": res.verify, "points": points}
+
+
+@contextlib.contextmanager
+def _saying_what_is_saved(saved: Callable[[], tuple]):
+    """Ctrl-C as SweepInterrupted, a failed write as SweepWriteError, each naming the chunks kept
+    (`saved()`: work directory, chunks saved, chunks in all)."""
+    try:
+        yield
+    except KeyboardInterrupt:
+        raise SweepInterrupted(*saved()) from None
+    except WriteError as exc:
+        raise SweepWriteError(exc, *saved()) from None
 
 
 def _run_adaptive(sp: S.Spec, out, jobs, resume, backend, scheduler, progress, overwrite, verify, wait, log) -> dict:
@@ -211,13 +220,9 @@ def _run_adaptive(sp: S.Spec, out, jobs, resume, backend, scheduler, progress, o
 
     out = Path(out) if out is not None else AR.default_output(sp)
     _note_skipped_loads(sp, log)
-    try:
+    with _saying_what_is_saved(lambda: AR.saved_chunks(sp, out)):
         res = AR.run_adaptive(sp, out, jobs=jobs, resume=resume, backend=backend, scheduler=scheduler,
                               progress=progress, log=log, overwrite=overwrite, verify=verify, wait=wait)
-    except KeyboardInterrupt:
-        raise SweepInterrupted(*AR.saved_chunks(sp, out)) from None
-    except WriteError as exc:
-        raise SweepWriteError(exc, *AR.saved_chunks(sp, out)) from None
     if res.verify is not None:
         V.warn(res.verify)
     cycles = res.record["cycles"]
