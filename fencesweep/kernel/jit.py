@@ -19,7 +19,9 @@ with one of:
               call the function. Nothing but a kernel calls it, and the wrappers cost more to
               compile than a small function itself (measured on this machine: 0.125 s against
               0.039 s for a one-line function, of the ~60 kernel functions' cold compile).
-              `python_callable` gives a test or a Python caller its own callable copy.
+              `python_callable` gives a test or a Python caller its own callable copy;
+            * KernelCompiler: Numba's nopython pipeline without the passes for what no kernel
+              function uses (KernelCompiler's docstring).
   specialise(template, name, **bindings)  for the few generic functions that call a scene's
             compiled function (kernel/rk.py's step calls the right-hand side, kernel/driver.py's
             loop calls the step and the scene's accept, kernel/search.py calls a predicate or a
@@ -42,7 +44,10 @@ from pathlib import Path
 from fencesweep.kernel.numba_setup import numba  # first: Numba loaded without what it does not need
 from numba import njit, types
 from numba.core import caching
+from numba.core import typed_passes as tp, untyped_passes as up
 from numba.core.codegen import CPUCodeLibrary, JITCPUCodegen
+from numba.core.compiler import CompilerBase
+from numba.core.compiler_machinery import PassManager
 from numba.core.registry import CPUDispatcher
 
 from fencesweep.kernel import cache
@@ -97,6 +102,40 @@ _KERNEL = dict(nopython=True, _nrt=False, no_cpython_wrapper=True, no_cfunc_wrap
 
 #: kernel functions being compiled, innermost last (KernelDispatcher.compile)
 _COMPILING: list = []
+
+
+class KernelCompiler(CompilerBase):
+    """Numba's nopython pipeline (numba.core.compiler.DefaultPassBuilder) for a kernel function,
+    without the passes for what no kernel function uses; each of those passes walks the whole
+    function, about 1 s of a first cycle's 15 s (results/startup.md):
+      * with-contexts (objmode, parallel chunks), closures and functions made inside a kernel,
+        Numba-level inlining (inline="always"; kernel(inline=True) asks LLVM instead),
+        literally() and literal_unroll: not used by any kernel function;
+      * the rewrites after typing: array expressions (a kernel allocates nothing, so it has none)
+        and string getitems;
+      * SSA form: a kernel variable keeps one type (the test suite and the tables tell if not:
+        typing fails, or a result changes);
+      * parfor diagnostics (no parallel=True).
+    Kept: bytecode to IR, the constant rewrites (static getitem, constant raises), dead-branch
+    pruning of constant conditions, typing, overload inlining, IR legalization, lowering."""
+
+    def define_pipelines(self):
+        pm = PassManager("fencesweep kernel")
+        for pass_class, what in (
+                (up.TranslateByteCode, "analyzing bytecode"), (up.FixupArgs, "fix up args"),
+                (up.IRProcessing, "processing IR"),
+                (up.RewriteSemanticConstants, "rewrite semantic constants"),
+                (up.DeadBranchPrune, "dead branch pruning"), (up.GenericRewrites, "nopython rewrites"),
+                (up.RewriteDynamicRaises, "rewrite dynamic raises"),
+                (tp.NopythonTypeInference, "nopython frontend"),
+                (tp.InlineOverloads, "inline overloaded functions"),
+                (tp.NoPythonSupportedFeatureValidation, "ensure features that are in use are in a valid form"),
+                (tp.IRLegalization, "ensure IR is legal prior to lowering"),
+                (tp.AnnotateTypes, "annotate types"), (tp.NativeLowering, "native lowering"),
+                (tp.NoPythonBackend, "nopython mode backend")):
+            pm.add_pass(pass_class, what)
+        pm.finalize()
+        return [pm]
 
 
 class KernelDispatcher(CPUDispatcher):
@@ -165,7 +204,22 @@ def _ir_only_env(method):
     return wrapped
 
 
+def _optimize_functions(library, ll_module):
+    """CPUCodeLibrary._optimize_functions with one function pass manager for the module: Numba
+    builds a new pass builder and pass manager for every function of every module it adds
+    (declarations included), ~1000 of them for a first cycle; the passes run, and the code they
+    give, are the same (tables identical; measured: a first cycle ~1 s less of its ~15 s)."""
+    ll_module.data_layout = library._codegen._data_layout
+    fpm, pb = library._codegen._function_pass_manager()
+    for func in ll_module.functions:
+        if not func.is_declaration:
+            fpm.run(func, pb)
+
+
 if IR_ONLY:
+    if hasattr(numba.core.codegen, "create_pass_builder"):  # Numba on LLVM's new pass manager
+        _optimize_functions.__wrapped__ = CPUCodeLibrary._optimize_functions
+        CPUCodeLibrary._optimize_functions = _optimize_functions
     CPUCodeLibrary._optimize_final_module = _ir_only(CPUCodeLibrary._optimize_final_module)
     CPUCodeLibrary._finalize_final_module = _ir_only_finalize(CPUCodeLibrary._finalize_final_module)
     JITCPUCodegen.set_env = _ir_only_env(JITCPUCodegen.set_env)
@@ -178,7 +232,7 @@ def kernel(inline=False):
     targetoptions = dict(_KERNEL, forceinline=bool(inline))
 
     def compiled(fn):
-        return KernelDispatcher(py_func=fn, locals={}, targetoptions=targetoptions)
+        return KernelDispatcher(py_func=fn, locals={}, targetoptions=targetoptions, pipeline_class=KernelCompiler)
 
     return compiled
 
