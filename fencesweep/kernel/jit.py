@@ -7,8 +7,9 @@ with one of:
               would otherwise compile f(x, N_CTRL), f(x, N_STATE) and f(x, 3) as three
               functions, f(x, True) and f(x, flag) as two (measured: 1130 compilations of 79
               functions for a first cycle before; tests/test_jit.py checks one per function);
-            * cache=True: compiled once into Numba's on-disk cache (kernel/cache.py keeps that
-              cache in a directory of its own, named by a hash of every kernel source);
+            * not cached itself: it is compiled into the entry points that call it, which are
+              (IR_ONLY below; kernel/cache.py keeps their cache in a directory of its own, named
+              by a hash of every kernel source);
             * _nrt=False: without Numba's reference counting. A kernel function allocates
               nothing: it works on arrays its caller made. With the counting on, Numba
               increments and decrements (atomically) the reference of every array argument of
