@@ -12,6 +12,7 @@ import pandas as pd
 import pytest
 
 from fencesweep import ParameterError, resolve, simulate
+from fencesweep.kernel import numerics as NU
 from fencesweep.model import simulate as api
 from fencesweep.model.results import CYCLE_RESULTS, STREAM_CYCLE_RESULTS, STREAM_RESULTS
 
@@ -63,7 +64,10 @@ def test_a_settled_element_makes_every_cycle_the_first(B2, K2):
         for name, _, _ in STREAM_CYCLE_RESULTS:
             if name in WORK or isinstance(first[name], str) or name.startswith("t_S") or name == "t_rail":
                 continue
-            assert row[name] == pytest.approx(first[name], rel=1e-6, abs=1e-6, nan_ok=True), (k, name)
+            # within 10 x the step's tolerance TOL: the start differs from the first cycle's by the
+            # settled remainder, which can change the step sequence (on one 2-core machine with
+            # AVX-512: contact_energy 1.8e-6 apart)
+            assert row[name] == pytest.approx(first[name], rel=10 * NU.TOL, abs=1e-6, nan_ok=True), (k, name)
         assert row.outcome == first.outcome == "scraped"
         assert abs(row.start_amplitude) < 1e-6
 

@@ -111,9 +111,10 @@ def solved(name: str, key: tuple, solve):
 # ------------------------------------------------------------------ first runs
 #: entry points known to be compiled in this process (checked on disk once per process)
 _warm: set = set()
-#: seconds a cold compile of each group of entry points took on a 2-core machine
-#: (benchmarks/startup.py, results/startup.md): what the first run announces
-COMPILE_SECONDS = {"cycle": 30, "impact": 5}
+#: seconds a cold compile of each group of entry points takes on a 2-core machine
+#: (benchmarks/startup.py, results/startup.md: a first cycle 14.3-15.2 s; another 2-core machine
+#: of the same kind took twice as long): what the first run announces
+COMPILE_SECONDS = {"cycle": 15, "impact": 5}
 #: the groups a group's compile makes warm too (none now: the contact law's calibration, which
 #: every cycle's parameters need, no longer runs the impact scene; model/calibrate.py)
 IMPLIES = {"cycle": ("cycle",), "impact": ("impact",)}
