@@ -100,6 +100,10 @@ def install(tree: Path, venv: Path) -> float:
     subprocess.run([sys.executable, "-m", "venv", "--system-site-packages", str(venv)], check=True)
     env = {k: v for k, v in os.environ.items() if not k.startswith(("NUMBA_", "PYTHONPATH"))}
     s, _ = _wall([str(venv / "bin" / "pip"), "install", "-q", "-e", str(tree)], env, tree)
+    r = subprocess.run([str(venv / "bin" / "python"), "-c", "import fencesweep; print(fencesweep.__file__)"],
+                       env=dict(env, PYTHONPATH=str(tree)), cwd=tree, capture_output=True, text=True, check=True)
+    if not Path(r.stdout.strip()).resolve().is_relative_to(tree.resolve()):  # as grid runs it
+        raise RuntimeError(f"the venv of {tree} imports fencesweep from {r.stdout.strip()}")
     return s
 
 
@@ -107,13 +111,9 @@ def grid(tree: Path, venv: Path, cache: Path, out: Path, jobs: int) -> tuple:
     """The main job with the venv's `fencesweep` command. PYTHONPATH names the tree: the venv sees
     the machine's packages, and an editable install there of another checkout (a path entry in
     a .pth file) would otherwise be found before the venv's own editable install (a finder that
-    Python asks after the path entries); checked below."""
+    Python asks after the path entries); install checks it once."""
     out.unlink(missing_ok=True)
     env = _env(tree, cache)
-    r = subprocess.run([str(venv / "bin" / "python"), "-c", "import fencesweep; print(fencesweep.__file__)"],
-                       env=env, cwd=tree, capture_output=True, text=True, check=True)
-    if not Path(r.stdout.strip()).resolve().is_relative_to(tree.resolve()):
-        raise RuntimeError(f"the venv of {tree} imports fencesweep from {r.stdout.strip()}")
     cmd = [str(venv / "bin" / "fencesweep"), "grid", "sweeps/b2k2.yaml", "--out", str(out), "--jobs", str(jobs),
            "--no-resume", "--quiet"]
     return _wall(cmd, env, tree)
