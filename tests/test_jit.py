@@ -15,7 +15,7 @@ from numba.core.dispatcher import Dispatcher
 from numba.core.errors import TypingError
 
 import fencesweep
-from fencesweep.kernel import cache
+from fencesweep.kernel import cache, share
 from fencesweep.kernel.jit import KernelDispatcher, kernel, python_callable
 from fencesweep.model import simulate as api
 from fencesweep.model.contact import kelvin_force
@@ -72,7 +72,7 @@ def test_the_cache_directory_is_named_by_the_kernel_sources(tmp_path):
         with open({str(tmp_path / "fencesweep" / "model" / "contact.py")!r}, "a") as fh:
             fh.write("\\n# an edit\\n")
         sys.path.insert(0, {str(tmp_path)!r})
-        from fencesweep.kernel import cache
+        from fencesweep.kernel import cache, share
         print(cache.HASH)
     """)
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
@@ -93,9 +93,13 @@ COLD_RUN = textwrap.dedent("""
     res += [fencesweep.simulate("impact", drive=d)["peak_force"] for d in ("rigid", "flexible", "free")]
     res.append(fencesweep.simulate("freefall")["peak_force"])
     import gc
+    from fencesweep.kernel import share
+    from fencesweep.model.simulate import CYCLE_PLAN
     disps = [o for o in gc.get_objects() if isinstance(o, Dispatcher) and o.py_func.__module__.startswith("fencesweep")]
+    plan = [share.signature(args) in d.signatures for d, args in share.load_plan(CYCLE_PLAN)]
     print(json.dumps({"results": res, "most": max(len(d.signatures) for d in disps),
-                      "compiled": sum(len(d.signatures) for d in disps)}))
+                      "compiled": sum(len(d.signatures) for d in disps), "plan": plan,
+                      "loaded": sum(sum(d._cache_hits.values()) for d in disps if isinstance(d, jit.KernelDispatcher))}))
 """)
 
 
@@ -116,6 +120,18 @@ def test_two_processes_on_an_empty_cache_both_finish_and_every_function_compiles
     cold = reports[said.index(True)]
     assert cold["most"] == 1 and cold["compiled"] > 80  # every function compiled exactly once
     assert reports[said.index(False)]["compiled"] <= 3  # the entry points, loaded
+    # the compile plan's example arguments have the types run_cycles compiles its functions for,
+    # and the helper compiled some of them (kernel/share.py); its directory is gone
+    assert cold["plan"] and all(cold["plan"])
+    assert cold["loaded"] > 0
+    assert list(tmp_path.glob("fencesweep-*/share-*")) == []
+    # the same results with the compile all in one process
+    env[share.HELPER_ENV] = "0"
+    env["NUMBA_CACHE_DIR"] = str(tmp_path / "alone")
+    alone = json.loads(subprocess.run([sys.executable, "-c", COLD_RUN], env=env, capture_output=True, text=True,
+                                      check=True).stdout.strip().splitlines()[-1])
+    assert alone["results"] == here
+    assert alone["loaded"] == 0 and alone["most"] == 1
 
 
 def test_a_warm_process_says_nothing(capfd):

@@ -111,10 +111,11 @@ def solved(name: str, key: tuple, solve):
 # ------------------------------------------------------------------ first runs
 #: entry points known to be compiled in this process (checked on disk once per process)
 _warm: set = set()
-#: seconds a cold compile of each group of entry points takes on a 2-core machine
-#: (benchmarks/startup.py, results/startup.md: a first cycle 14.3-15.2 s; another 2-core machine
-#: of the same kind took twice as long): what the first run announces
-COMPILE_SECONDS = {"cycle": 15, "impact": 5}
+#: seconds a cold compile of each group of entry points takes on a 2-core machine, the cycle's
+#: with its helper process (kernel/share.py; benchmarks/startup.py, results/startup.md: a first
+#: cycle 9-10 s; another 2-core machine of the same kind took up to twice as long): what the
+#: first run announces
+COMPILE_SECONDS = {"cycle": 10, "impact": 5}
 #: the groups a group's compile makes warm too (none now: the contact law's calibration, which
 #: every cycle's parameters need, no longer runs the impact scene; model/calibrate.py)
 IMPLIES = {"cycle": ("cycle",), "impact": ("impact",)}
@@ -139,10 +140,11 @@ def mark_warm(name: str) -> None:
 
 
 @contextlib.contextmanager
-def compiling(name: str, say=None):
+def compiling(name: str, say=None, cold=contextlib.nullcontext):
     """Around the first call of the entry points of `name` in a process: when they are not in
     the cache yet, say so on stderr (or to `say`), and compile under a lock so that a process
-    started at the same time waits and then loads them; when they are, nothing."""
+    started at the same time waits and then loads them, inside the context `cold()` (a helper
+    process on the second core: kernel/share.py); when they are, nothing."""
     if is_warm(name):
         yield
         return
@@ -155,10 +157,13 @@ def compiling(name: str, say=None):
         lock = FileLock(str(DIR / "compile.lock"))
         lock.acquire()
     try:
-        if not is_warm(name):  # another process may have compiled them while this one waited
-            say(f"fencesweep: compiling the {name} kernels (first run on this machine, about "
-                f"{COMPILE_SECONDS.get(name, 10)} s; later runs load them from {DIR})")
-        yield
+        if is_warm(name):  # another process compiled them while this one waited
+            yield
+            return
+        say(f"fencesweep: compiling the {name} kernels (first run on this machine, about "
+            f"{COMPILE_SECONDS.get(name, 10)} s; later runs load them from {DIR})")
+        with cold():
+            yield
         mark_warm(name)
     finally:
         if lock is not None:

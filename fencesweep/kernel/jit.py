@@ -35,6 +35,9 @@ with one of:
             float64 scalars and C-contiguous float64 / int64 arrays, so one compilation
             serves every call; tests/test_jit.py checks that every function has exactly one):
             with reference counting, as entry points allocate a run's work arrays once.
+  both      a plain function that an entry point and Python both call (the work arrays,
+            so that kernel/share.py's compile plans have arguments of the entry point's types).
+A first run compiles on two cores: kernel/share.py.
 """
 from __future__ import annotations
 
@@ -45,13 +48,14 @@ from pathlib import Path
 from fencesweep.kernel.numba_setup import numba  # first: Numba loaded without what it does not need
 from numba import njit, types
 from numba.core import caching
+from numba.extending import register_jitable
 from numba.core import typed_passes as tp, untyped_passes as up
 from numba.core.codegen import CPUCodeLibrary, JITCPUCodegen
 from numba.core.compiler import CompilerBase
 from numba.core.compiler_machinery import PassManager
 from numba.core.registry import CPUDispatcher
 
-from fencesweep.kernel import cache
+from fencesweep.kernel import cache, share
 
 # ------------------------------------------------------------------ where the entry points are cached
 class KernelLocator(caching._CacheLocator):
@@ -151,7 +155,8 @@ class KernelDispatcher(CPUDispatcher):
     def compile(self, sig):
         _COMPILING.append(self)
         try:
-            return super().compile(sig)
+            with share.turn(self):  # a cold compile on two cores: kernel/share.py
+                return super().compile(sig)
         finally:
             _COMPILING.pop()
 
@@ -254,6 +259,15 @@ def specialise(template, name: str, **bindings):
     return kernel()(fn)
 
 
+def both(fn):
+    """A plain function that Python and entry points both call (numba.extending.register_jitable):
+    an entry point's allocations, which Python makes too to have arguments of the same types
+    (kernel/share.py's plans). Not for kernel functions, which allocate nothing."""
+    if not JIT_DISABLED:
+        register_jitable(fn)
+    return fn
+
+
 @functools.lru_cache(maxsize=None)
 def python_callable(fn):
     """A copy of kernel function `fn` that Python can call (tests, and Python code that needs a
@@ -263,4 +277,4 @@ def python_callable(fn):
     return njit(_nrt=False)(fn.py_func)
 
 
-__all__ = ["kernel", "entry", "specialise", "python_callable", "cache", "JIT_DISABLED"]
+__all__ = ["kernel", "entry", "specialise", "both", "python_callable", "cache", "JIT_DISABLED"]

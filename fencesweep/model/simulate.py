@@ -5,6 +5,7 @@ vector (setup.prepare), calls the compiled kernel of the scene and unpacks its r
 """
 from __future__ import annotations
 
+import contextlib
 from typing import Any
 
 import numpy as np
@@ -36,6 +37,17 @@ def simulate(scene: str = "cycle", case: str | None = None, **params: Any) -> di
     return res
 
 
+#: the cycle kernels' compile plan (kernel/share.py)
+CYCLE_PLAN = "fencesweep.model.scenes.stream:compile_plan"
+
+
+def _cycle_compile():
+    """Around a cold compile of the cycle kernels: on two cores (kernel/share.py)."""
+    from fencesweep.kernel import share
+
+    return share.shared_compile(CYCLE_PLAN)
+
+
 #: trajectory rows allocated first; a run that needs more is rerun with the count it reported
 TRAJECTORY_ROWS = 4096
 
@@ -55,7 +67,8 @@ def simulate_resolved(vals: dict, trajectory: bool = False):
     from fencesweep.model.prepare import prepare
 
     scene = vals["scene"]
-    with cache.compiling("cycle" if scene in ("cycle", "stream") else "impact"):
+    cycles = scene in ("cycle", "stream")
+    with cache.compiling("cycle" if cycles else "impact", cold=_cycle_compile if cycles else contextlib.nullcontext):
         p = prepare(vals)
         if scene == "stream":
             return _stream(p, vals, trajectory)

@@ -26,13 +26,13 @@ import numpy as np
 from fencesweep.kernel import driver
 from fencesweep.kernel import numerics as NU
 from fencesweep.kernel import rk
-from fencesweep.kernel.jit import entry, kernel
+from fencesweep.kernel.jit import both, entry, kernel
 from fencesweep.model import layout as Lp
 from fencesweep.model import results as Rs
 from fencesweep.model.scenes.contacts import N_SLOTS
 from fencesweep.model.scenes.cycle.books import apply_contact_change, drop_load, finish, record, start, swing_amplitude
 from fencesweep.model.scenes.cycle.layout import (A_EXITED, A_QMAX, A_STATUS, A_T_EXIT, IW_EDGE, IW_MODE, IW_RIDE,
-                                                  N_ACC, N_AUX, N_IW, N_Q, N_QV, N_STATE, QV_0, Work)
+                                                  N_ACC, N_AUX, N_IW, N_Q, N_QV, N_STATE, N_TRAJ, QV_0, Work)
 from fencesweep.model.scenes.cycle.peaks import quantities_from_aux
 from fencesweep.model.scenes.cycle.rhs import deflection, fence_state, rhs, step
 from fencesweep.model.scenes.cycle.run import run, set_tolerance
@@ -162,6 +162,35 @@ def cycle_in_stream(p, w, loads, period, k, out, row_starts):
     return ok
 
 
+@both
+def new_work(p, traj):
+    """The work arrays of a run (layout.Work) on the parameters p and the trajectory buffer traj."""
+    n = N_STATE
+    return Work(np.zeros(n), np.empty(n), np.empty(n), np.empty(n), np.empty((rk.N_STAGES, n)), np.zeros((8, n)),
+                np.zeros(1, np.int64), np.zeros(N_AUX), np.zeros(N_AUX), np.zeros(N_IW, np.int64),
+                np.zeros(N_SLOTS, np.int64), np.zeros(N_SLOTS, np.int64), np.empty(N_SLOTS), np.empty(N_SLOTS),
+                np.empty(N_SLOTS), np.empty(N_SLOTS), np.zeros((N_QV, N_Q)), np.empty(N_ACC), np.empty(n),
+                np.empty(n), np.empty(1), np.ones(N_Q + 1), np.empty((rk.N_STAGES, n)), np.empty(n),
+                np.zeros(driver.N_COUNT), traj, np.zeros(1, np.int64), p.copy())
+
+
+def compile_plan():
+    """The large kernel functions of run_cycles in the order its compile meets them, each with
+    example arguments of the types run_cycles passes (kernel/share.py: a first run compiles
+    them on two cores). A function renamed or an argument retyped here only costs time;
+    tests/test_jit.py checks that every one is what run_cycles compiles."""
+    from fencesweep.model.scenes.cycle import events, peaks
+    from fencesweep.model.scenes.cycle import run as cycle
+
+    p, o = np.zeros(Lp.N_P), np.zeros(Rs.N_STREAM_CYCLE_RESULTS)
+    w = new_work(p, np.empty((0, N_TRAJ)))
+    t = 0.0
+    return [(begin_cycle, (p, w)), (events.find_event, (p, w, t, t, False)),
+            (events.event_state, (p, w, t, t, t, 0)), (peaks.track_maxima, (p, w, t, t, t)),
+            (cycle.move_on, (p, w, t, 0, 0, t)), (cycle.check_state, (p, w)), (end_cycle, (p, w, False, o)),
+            (rest, (p, w, t, t, o))]
+
+
 @entry()
 def run_cycles(p, loads, period, out, traj, row_starts):
     """Simulate len(loads) work cycles starting every `period` [s] (docs/model.md §14; one cycle:
@@ -169,14 +198,7 @@ def run_cycles(p, loads, period, out, traj, row_starts):
     (STREAM_CYCLE_RESULTS) and the time series into traj (rows of TRAJ_COLUMNS, as many as
     fit), the first row of cycle k into row_starts[k] (row_starts[n]: the count). Returns the
     number of rows produced. The only place the cycle's work arrays are allocated."""
-    n = N_STATE
-    w = Work(np.zeros(n), np.empty(n), np.empty(n), np.empty(n), np.empty((rk.N_STAGES, n)), np.zeros((8, n)),
-             np.zeros(1, np.int64), np.zeros(N_AUX), np.zeros(N_AUX), np.zeros(N_IW, np.int64),
-             np.zeros(N_SLOTS, np.int64), np.zeros(N_SLOTS, np.int64), np.empty(N_SLOTS), np.empty(N_SLOTS),
-             np.empty(N_SLOTS), np.empty(N_SLOTS), np.zeros((N_QV, N_Q)), np.empty(N_ACC), np.empty(n), np.empty(n),
-             np.empty(1),
-             np.ones(N_Q + 1), np.empty((rk.N_STAGES, n)), np.empty(n), np.zeros(driver.N_COUNT), traj,
-             np.zeros(1, np.int64), p.copy())
+    w = new_work(p, traj)
     n_cycles = loads.shape[0]
     for k in range(n_cycles):
         if not cycle_in_stream(p, w, loads, period, k, out, row_starts):

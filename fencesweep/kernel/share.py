@@ -1,0 +1,212 @@
+"""A cold compile on two cores: a helper process compiles part of the kernel functions while this
+one compiles the rest, and each loads what the other has finished.
+
+Numba compiles one process's functions one at a time (it holds a global lock), in the order its
+typing meets them: for a first cycle, ~140 kernel functions in ~10 s, then the entry point's
+module (~2.5 s, kernel/jit.py IR_ONLY). While a first run compiles (kernel/cache.py `compiling`):
+
+  * every kernel function this process or the helper compiles is kept on disk as LLVM bitcode
+    (`KernelCache`: Numba's cache of a compiled function, with the IR a caller links instead of
+    machine code, which a kernel function does not have) in a directory of this compile, and a
+    kernel function found there is loaded instead of compiled;
+  * the scene gives a plan: its large kernel functions with example arguments of the types its
+    entry point calls them with, in the order that entry point's compile meets them
+    (scenes/stream.py `compile_plan`). This process compiles from the front, as Numba's typing
+    goes; the helper (`python -m fencesweep.kernel.share DIR PLAN`) compiles from the back and
+    stops where this process has arrived. A plan function is claimed by whichever process
+    starts it first (a file created exclusively); one that reaches a function the other has
+    claimed waits for it (this process, while the helper runs) or compiles it too (the
+    helper);
+  * at the end the helper is stopped and the directory removed: only the entry points stay
+    cached (kernel/cache.py).
+
+The helper changes the time only: what this process links is the same LLVM IR (bitcode keeps
+it exactly), and without the helper (it fails to start, dies, or FENCESWEEP_COMPILE_HELPER=0)
+this process compiles everything itself (tests/test_jit.py compares the results of both).
+Measured on a 2-core machine: a first cycle ~13 s alone, ~9.5 s with the helper
+(benchmarks/startup.py, results/startup.md).
+"""
+from __future__ import annotations
+
+import contextlib
+import importlib
+import os
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from fencesweep.kernel.numba_setup import numba  # noqa: F401  first: Numba loaded as the kernels load it
+from numba import typeof
+from numba.core import caching
+
+from fencesweep.kernel import cache
+from fencesweep.resources import usable_cores
+
+#: the environment variable that turns the helper off ("0")
+HELPER_ENV = "FENCESWEEP_COMPILE_HELPER"
+#: how often a process waiting for the other's function looks for it [s]
+POLL = 0.005
+
+
+class _Session:
+    """The compile in progress: its directory, the plan's functions, the helper (None in the helper)."""
+
+    def __init__(self, where: Path, plan, helper):
+        self.where, self.helper = where, helper
+        self.roots = {key(d) for d, _ in plan}
+
+
+_session: _Session | None = None
+
+
+def key(disp) -> str:
+    """A kernel function's name in the directory of a compile (module and qualified name)."""
+    return f"{disp.py_func.__module__}.{disp.py_func.__qualname__}"
+
+
+def load_plan(plan: str):
+    """'module:function' -> the plan that function returns: [(kernel function, example arguments)]."""
+    module, name = plan.split(":")
+    return getattr(importlib.import_module(module), name)()
+
+
+def signature(args: tuple) -> tuple:
+    """The Numba types a kernel function is compiled for with these arguments."""
+    return tuple(typeof(a) for a in args)
+
+
+# ------------------------------------------------------------------ the bitcode cache
+class _Locator(caching._CacheLocator):
+    """Numba's cache locator for kernel functions during a shared compile: the session's directory."""
+
+    def __init__(self, py_func, py_file):
+        self._lineno = py_func.__code__.co_firstlineno
+        self._path = _session.where / "cache" / Path(py_file).resolve().relative_to(cache.PKG).parent
+
+    def get_cache_path(self):
+        return str(self._path)
+
+    def get_source_stamp(self):
+        return cache.HASH
+
+    def get_disambiguator(self):
+        return str(self._lineno)
+
+    @classmethod
+    def from_function(cls, py_func, py_file):
+        return cls(py_func, py_file)
+
+
+class _BitcodeImpl(caching.CompileResultCacheImpl):
+    """Numba's cache of a compile result with the library as LLVM bitcode (kernel/jit.py IR_ONLY:
+    a kernel function's library has IR and no machine code) and no type annotation text."""
+
+    _locator_classes = [_Locator]
+
+    def reduce(self, cres):
+        fndesc = cres.fndesc
+        fndesc.typemap = fndesc.calltypes = None  # as Numba's own reduce: not needed, may not pickle
+        return (cres.library.serialize_using_bitcode(), fndesc, cres.environment, cres.signature,
+                cres.objectmode, cres.lifted, None, cres.reload_init,
+                tuple(cres._find_referenced_environments()))
+
+
+class KernelCache(caching.FunctionCache):
+    """The cache of one kernel function during a shared compile (module docstring)."""
+
+    _impl_class = _BitcodeImpl
+
+
+# ------------------------------------------------------------------ claims
+def _claim(k: str) -> bool:
+    """Claim plan function k for this process; False if the other process has."""
+    path = _session.where / f"{k}.claim"
+    try:
+        fd = os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
+    except FileExistsError:
+        return path.read_text().strip() == str(os.getpid()) if path.stat().st_size else False
+    with os.fdopen(fd, "w") as fh:
+        fh.write(str(os.getpid()))
+    return True
+
+
+def _done(k: str) -> Path:
+    return _session.where / f"{k}.done"
+
+
+def _helper_running() -> bool:
+    return _session.helper is not None and _session.helper.poll() is None
+
+
+@contextlib.contextmanager
+def turn(disp):
+    """Around KernelDispatcher.compile: during a shared compile, the kernel function is loaded
+    from the session's cache when there and saved to it when compiled; a plan function the
+    helper claimed is waited for (module docstring). Outside one, nothing."""
+    if _session is None:
+        yield
+        return
+    if not isinstance(disp._cache, KernelCache):
+        disp._cache = KernelCache(disp.py_func)
+    k = key(disp)
+    if k in _session.roots and not _claim(k):
+        while _session.helper is not None and not _done(k).exists() and _helper_running():
+            time.sleep(POLL)
+    try:
+        yield
+    finally:
+        if k in _session.roots:
+            with contextlib.suppress(OSError):
+                _done(k).touch()
+
+
+def _helper_enabled() -> bool:
+    return os.environ.get(HELPER_ENV, "1") != "0" and usable_cores() > 1
+
+
+@contextlib.contextmanager
+def shared_compile(plan: str | None):
+    """Around a cold compile in this process: start the helper on `plan` ('module:function',
+    module docstring) and share the kernel functions with it; afterwards stop it and remove
+    the directory. Without a plan, or with the helper turned off, nothing."""
+    global _session
+    if plan is None or not _helper_enabled() or _session is not None:
+        yield
+        return
+    where = cache.DIR / f"share-{os.getpid()}"
+    helper = None
+    try:
+        where.mkdir(parents=True, exist_ok=True)
+        helper = subprocess.Popen([sys.executable, "-m", "fencesweep.kernel.share", str(where), plan],
+                                  stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                                  stderr=subprocess.DEVNULL)
+        _session = _Session(where, load_plan(plan), helper)
+    except OSError:
+        _session = None
+    try:
+        yield
+    finally:
+        _session = None
+        if helper is not None:
+            helper.kill()
+            helper.wait()
+        shutil.rmtree(where, ignore_errors=True)
+
+
+def helper_main(where: str, plan: str) -> None:
+    """The helper: compile the plan from the back until this process's claims are reached."""
+    global _session
+    steps = load_plan(plan)
+    _session = _Session(Path(where), steps, None)
+    for disp, args in reversed(steps):
+        if (_session.where / f"{key(disp)}.claim").exists():
+            break  # the other process has come this far
+        disp.compile(signature(args))
+
+
+if __name__ == "__main__":  # run as a script, this file is not the module the kernels use
+    from fencesweep.kernel import share
+
+    share.helper_main(*sys.argv[1:3])
