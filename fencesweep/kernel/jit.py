@@ -35,8 +35,10 @@ with one of:
             float64 scalars and C-contiguous float64 / int64 arrays, so one compilation
             serves every call; tests/test_jit.py checks that every function has exactly one):
             with reference counting, as entry points allocate a run's work arrays once.
-  both      a plain function that an entry point and Python both call (the work arrays,
-            so that kernel/share.py's compile plans have arguments of the entry point's types).
+  kernel(allocates=True)  an entry point's allocations (its work arrays): a kernel function
+            with reference counting, compiled as IR for the entry point like the others (so a
+            first run's helper can compile it too: kernel/share.py); Python calls its plain
+            function (`.py_func`) for arrays of the same types.
 A first run compiles on two cores: kernel/share.py.
 """
 from __future__ import annotations
@@ -48,7 +50,6 @@ from pathlib import Path
 from fencesweep.kernel.numba_setup import numba  # first: Numba loaded without what it does not need
 from numba import njit, types
 from numba.core import caching
-from numba.extending import register_jitable
 from numba.core import typed_passes as tp, untyped_passes as up
 from numba.core.codegen import CPUCodeLibrary, JITCPUCodegen
 from numba.core.compiler import CompilerBase
@@ -231,11 +232,11 @@ if IR_ONLY:
     JITCPUCodegen.set_env = _ir_only_env(JITCPUCodegen.set_env)
 
 
-def kernel(inline=False):
+def kernel(inline=False, allocates=False):
     """The decorator of a kernel function (module docstring)."""
     if JIT_DISABLED:
         return lambda fn: fn
-    targetoptions = dict(_KERNEL, forceinline=bool(inline))
+    targetoptions = dict(_KERNEL, forceinline=bool(inline), _nrt=bool(allocates))
 
     def compiled(fn):
         return KernelDispatcher(py_func=fn, locals={}, targetoptions=targetoptions, pipeline_class=KernelCompiler)
@@ -259,15 +260,6 @@ def specialise(template, name: str, **bindings):
     return kernel()(fn)
 
 
-def both(fn):
-    """A plain function that Python and entry points both call (numba.extending.register_jitable):
-    an entry point's allocations, which Python makes too to have arguments of the same types
-    (kernel/share.py's plans). Not for kernel functions, which allocate nothing."""
-    if not JIT_DISABLED:
-        register_jitable(fn)
-    return fn
-
-
 @functools.lru_cache(maxsize=None)
 def python_callable(fn):
     """A copy of kernel function `fn` that Python can call (tests, and Python code that needs a
@@ -277,4 +269,4 @@ def python_callable(fn):
     return njit(_nrt=False)(fn.py_func)
 
 
-__all__ = ["kernel", "entry", "specialise", "both", "python_callable", "cache", "JIT_DISABLED"]
+__all__ = ["kernel", "entry", "specialise", "python_callable", "cache", "JIT_DISABLED"]

@@ -9,14 +9,18 @@ module (~2.5 s, kernel/jit.py IR_ONLY). While a first run compiles (kernel/cache
     (`KernelCache`: Numba's cache of a compiled function, with the IR a caller links instead of
     machine code, which a kernel function does not have) in a directory of this compile, and a
     kernel function found there is loaded instead of compiled;
-  * the scene gives a plan: its large kernel functions with example arguments of the types its
-    entry point calls them with, in the order that entry point's compile meets them
-    (scenes/stream.py `compile_plan`). This process compiles from the front, as Numba's typing
-    goes; the helper (`python -m fencesweep.kernel.share DIR PLAN`) compiles from the back and
-    stops where this process has arrived. A plan function is claimed by whichever process
-    starts it first (a file created exclusively); one that reaches a function the other has
-    claimed waits for it (this process, while the helper runs) or compiles it too (the
-    helper);
+  * the scene gives a plan (`Plan`, scenes/stream.py `compile_plan`): its entry point and a
+    list of its large kernel functions, each with example arguments of the types they are
+    called with, and a prelude: what a run does before it calls the entry point and the helper
+    can do for it (solve the values kept in kernel/cache.py `solved`, compile the small entry
+    points these need). This process compiles the list from the front, then the entry point
+    (whose compile then finds its kernel functions compiled), before its run's own
+    preparation, which then finds the prelude's results. The helper (`python -m
+    fencesweep.kernel.share DIR PLAN`) runs the prelude for the run's parameters, then compiles
+    the list from the back and stops where this process has arrived. A plan function is
+    claimed by whichever process starts it first (a file created exclusively); one that
+    reaches a function the other has claimed waits for it (this process, while the helper
+    runs) or compiles it too (the helper);
   * at the end the helper is stopped and the directory removed: only the entry points stay
     cached (kernel/cache.py).
 
@@ -30,14 +34,16 @@ from __future__ import annotations
 
 import contextlib
 import importlib
+import json
 import os
 import shutil
 import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Callable, NamedTuple
 
-from fencesweep.kernel.numba_setup import numba  # noqa: F401  first: Numba loaded as the kernels load it
+from fencesweep.kernel.numba_setup import numba  # first: Numba loaded as the kernels load it
 from numba import typeof
 from numba.core import caching
 
@@ -50,12 +56,23 @@ HELPER_ENV = "FENCESWEEP_COMPILE_HELPER"
 POLL = 0.005
 
 
+class Plan(NamedTuple):
+    """A scene's compile plan (module docstring)."""
+
+    #: (entry point, example arguments)
+    entry: tuple
+    #: [(kernel function, example arguments)] in the order the entry point's compile meets them
+    kernels: list
+    #: prelude(vals): what a run on the parameters vals does before calling the entry point
+    prelude: Callable[[dict], object]
+
+
 class _Session:
     """The compile in progress: its directory, the plan's functions, the helper (None in the helper)."""
 
-    def __init__(self, where: Path, plan, helper):
+    def __init__(self, where: Path, plan: Plan, helper):
         self.where, self.helper = where, helper
-        self.roots = {key(d) for d, _ in plan}
+        self.roots = {key(d) for d, _ in plan.kernels}
 
 
 _session: _Session | None = None
@@ -66,8 +83,8 @@ def key(disp) -> str:
     return f"{disp.py_func.__module__}.{disp.py_func.__qualname__}"
 
 
-def load_plan(plan: str):
-    """'module:function' -> the plan that function returns: [(kernel function, example arguments)]."""
+def load_plan(plan: str) -> Plan:
+    """'module:function' -> the Plan that function returns."""
     module, name = plan.split(":")
     return getattr(importlib.import_module(module), name)()
 
@@ -132,6 +149,14 @@ def _claim(k: str) -> bool:
     return True
 
 
+def _claimed_by_other(k: str) -> bool:
+    path = _session.where / f"{k}.claim"
+    try:
+        return path.read_text().strip() != str(os.getpid())
+    except OSError:
+        return False
+
+
 def _done(k: str) -> Path:
     return _session.where / f"{k}.done"
 
@@ -163,14 +188,15 @@ def turn(disp):
 
 
 def _helper_enabled() -> bool:
-    return os.environ.get(HELPER_ENV, "1") != "0" and usable_cores() > 1
+    return os.environ.get(HELPER_ENV, "1") != "0" and usable_cores() > 1 and not numba.config.DISABLE_JIT
 
 
 @contextlib.contextmanager
-def shared_compile(plan: str | None):
-    """Around a cold compile in this process: start the helper on `plan` ('module:function',
-    module docstring) and share the kernel functions with it; afterwards stop it and remove
-    the directory. Without a plan, or with the helper turned off, nothing."""
+def shared_compile(plan: str | None, vals: dict | None = None):
+    """Around a cold compile in this process of a run on the parameters `vals`: start the helper
+    on `plan` ('module:function', module docstring), compile the plan's entry point sharing the
+    kernel functions with the helper; afterwards stop it and remove the directory. Without a
+    plan, or with the helper turned off, nothing."""
     global _session
     if plan is None or not _helper_enabled() or _session is not None:
         yield
@@ -179,13 +205,23 @@ def shared_compile(plan: str | None):
     helper = None
     try:
         where.mkdir(parents=True, exist_ok=True)
+        with contextlib.suppress(TypeError, ValueError):  # parameters JSON cannot hold: no prelude
+            (where / "vals.json").write_text(json.dumps(vals))
         helper = subprocess.Popen([sys.executable, "-m", "fencesweep.kernel.share", str(where), plan],
                                   stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
                                   stderr=subprocess.DEVNULL)
-        _session = _Session(where, load_plan(plan), helper)
+        steps = load_plan(plan)
+        _session = _Session(where, steps, helper)
     except OSError:
         _session = None
     try:
+        if _session is not None:
+            for disp, args in steps.kernels:  # from the front, up to where the helper has come
+                if _claimed_by_other(key(disp)):
+                    break  # the entry point's compile waits for it only if it gets there first
+                disp.compile(signature(args))
+            entry, args = steps.entry
+            entry.compile(signature(args))
         yield
     finally:
         _session = None
@@ -196,12 +232,15 @@ def shared_compile(plan: str | None):
 
 
 def helper_main(where: str, plan: str) -> None:
-    """The helper: compile the plan from the back until this process's claims are reached."""
+    """The helper: the plan's prelude, then its kernel functions from the back until this
+    process's claims are reached."""
     global _session
     steps = load_plan(plan)
     _session = _Session(Path(where), steps, None)
-    for disp, args in reversed(steps):
-        if (_session.where / f"{key(disp)}.claim").exists():
+    with contextlib.suppress(Exception):  # the prelude only saves time: the run does it again if it failed
+        steps.prelude(json.loads((_session.where / "vals.json").read_text()))
+    for disp, args in reversed(steps.kernels):
+        if _claimed_by_other(key(disp)):
             break  # the other process has come this far
         disp.compile(signature(args))
 

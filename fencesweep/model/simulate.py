@@ -41,11 +41,11 @@ def simulate(scene: str = "cycle", case: str | None = None, **params: Any) -> di
 CYCLE_PLAN = "fencesweep.model.scenes.stream:compile_plan"
 
 
-def _cycle_compile():
-    """Around a cold compile of the cycle kernels: on two cores (kernel/share.py)."""
+def _cycle_compile(vals: dict):
+    """Around a cold compile of the cycle kernels for a run on vals: on two cores (kernel/share.py)."""
     from fencesweep.kernel import share
 
-    return share.shared_compile(CYCLE_PLAN)
+    return share.shared_compile(CYCLE_PLAN, vals)
 
 
 #: trajectory rows allocated first; a run that needs more is rerun with the count it reported
@@ -68,7 +68,8 @@ def simulate_resolved(vals: dict, trajectory: bool = False):
 
     scene = vals["scene"]
     cycles = scene in ("cycle", "stream")
-    with cache.compiling("cycle" if cycles else "impact", cold=_cycle_compile if cycles else contextlib.nullcontext):
+    cold = (lambda: _cycle_compile(vals)) if cycles else contextlib.nullcontext
+    with cache.compiling("cycle" if cycles else "impact", cold=cold):
         p = prepare(vals)
         if scene == "stream":
             return _stream(p, vals, trajectory)

@@ -26,11 +26,12 @@ import numpy as np
 from fencesweep.kernel import driver
 from fencesweep.kernel import numerics as NU
 from fencesweep.kernel import rk
-from fencesweep.kernel.jit import both, entry, kernel
+from fencesweep.kernel.jit import entry, kernel
 from fencesweep.model import layout as Lp
 from fencesweep.model import results as Rs
 from fencesweep.model.scenes.contacts import N_SLOTS
-from fencesweep.model.scenes.cycle.books import apply_contact_change, drop_load, finish, record, start, swing_amplitude
+from fencesweep.model.scenes.cycle.books import (apply_contact_change, drop_load, finish, record, start,
+                                                 swing_amplitude, time_out)
 from fencesweep.model.scenes.cycle.layout import (A_EXITED, A_QMAX, A_STATUS, A_T_EXIT, IW_EDGE, IW_MODE, IW_RIDE,
                                                   N_ACC, N_AUX, N_IW, N_Q, N_QV, N_STATE, N_TRAJ, QV_0, Work)
 from fencesweep.model.scenes.cycle.peaks import quantities_from_aux
@@ -162,9 +163,10 @@ def cycle_in_stream(p, w, loads, period, k, out, row_starts):
     return ok
 
 
-@both
+@kernel(allocates=True)
 def new_work(p, traj):
-    """The work arrays of a run (layout.Work) on the parameters p and the trajectory buffer traj."""
+    """The work arrays of a run (layout.Work) on the parameters p and the trajectory buffer traj
+    (Python calls new_work.py_func for arrays of the same types)."""
     n = N_STATE
     return Work(np.zeros(n), np.empty(n), np.empty(n), np.empty(n), np.empty((rk.N_STAGES, n)), np.zeros((8, n)),
                 np.zeros(1, np.int64), np.zeros(N_AUX), np.zeros(N_AUX), np.zeros(N_IW, np.int64),
@@ -175,20 +177,32 @@ def new_work(p, traj):
 
 
 def compile_plan():
-    """The large kernel functions of run_cycles in the order its compile meets them, each with
-    example arguments of the types run_cycles passes (kernel/share.py: a first run compiles
-    them on two cores). A function renamed or an argument retyped here only costs time;
-    tests/test_jit.py checks that every one is what run_cycles compiles."""
+    """run_cycles' compile plan (kernel/share.py Plan: a first run compiles on two cores): the
+    entry point and its large kernel functions, each with example arguments of the types
+    run_cycles is called with and calls them with, the kernel functions split between the two
+    processes from both ends (this process from the front: those the step loop calls; the
+    helper from the back: the rest and the work arrays), and the preparation of a run's
+    parameters (model/prepare.py), which the helper does first. A function renamed or an
+    argument retyped here only costs time; tests/test_jit.py checks that each is what a run
+    compiles."""
+    from fencesweep.kernel.share import Plan
+    from fencesweep.model.prepare import prepare
     from fencesweep.model.scenes.cycle import events, peaks
     from fencesweep.model.scenes.cycle import run as cycle
 
     p, o = np.zeros(Lp.N_P), np.zeros(Rs.N_STREAM_CYCLE_RESULTS)
-    w = new_work(p, np.empty((0, N_TRAJ)))
+    traj = np.empty((0, N_TRAJ))
+    w = new_work.py_func(p, traj) if hasattr(new_work, "py_func") else new_work(p, traj)
     t = 0.0
-    return [(begin_cycle, (p, w)), (events.find_event, (p, w, t, t, False)),
-            (events.event_state, (p, w, t, t, t, 0)), (peaks.track_maxima, (p, w, t, t, t)),
-            (cycle.move_on, (p, w, t, 0, 0, t)), (cycle.check_state, (p, w)), (end_cycle, (p, w, False, o)),
-            (rest, (p, w, t, t, o))]
+    loads, out = np.zeros((1, Lp.N_LOAD)), np.zeros((1, Rs.N_STREAM_CYCLE_RESULTS))
+    entry = (run_cycles, (p, loads, t, out, traj, np.zeros(2, np.int64)))
+    kernels = [(rhs, (t, w.y, p, w.iw, w.K[0], w.aux)), (begin_cycle, (p, w)), (events.find_event, (p, w, t, t, False)),
+               (events.event_state, (p, w, t, t, t, 0)), (peaks.track_maxima, (p, w, t, t, t)),
+               (cycle.move_on, (p, w, t, 0, 0, t)), (cycle.check_state, (p, w)), (end_cycle, (p, w, False, o)),
+               (rest, (p, w, t, t, o)), (start_results, (p, w, o)), (peaks.record_peaks, (p, w, t, t, t)),
+               (time_out, (t, w)), (cycle_params, (p, loads[0], t, False, p)), (shift_times, (traj, 0, 0, 0, t)),
+               (not_run, (out, 0)), (new_work, (p, traj))]
+    return Plan(entry, kernels, prepare)
 
 
 @entry()
