@@ -3,7 +3,9 @@ off (NUMBA_DISABLE_JIT=1), as pvlib runs its Numba and plain paths through one s
 
 Without the JIT the kernels are ordinary Python functions, so the run also measures how much
 of the compiled code the tests execute: at least KERNEL_COVERAGE of the statements of the
-kernel sources (fencesweep.kernel.cache's list of them: kernel/ and model/) must run.
+kernel sources (fencesweep.kernel.cache's list of them: kernel/ and model/) must run, leaving
+out the modules of how Numba compiles them (COMPILE_MACHINERY), which a run without the JIT
+does not use by design.
 """
 import importlib.util
 import json
@@ -17,6 +19,8 @@ from fencesweep.kernel import cache
 ROOT = Path(__file__).resolve().parent.parent
 #: measured 90.7 % when this test was written (the kernels of 0.1.0 + kernel v2)
 KERNEL_COVERAGE = 0.85
+#: Numba's set-up, the compile policy, the cache and the two-core compile: no kernel code
+COMPILE_MACHINERY = {"kernel/numba_setup.py", "kernel/jit.py", "kernel/cache.py", "kernel/share.py"}
 
 
 def test_kernel_tests_pass_without_the_jit_and_cover_the_kernels(tmp_path):
@@ -32,7 +36,8 @@ def test_kernel_tests_pass_without_the_jit_and_cover_the_kernels(tmp_path):
     if not measured:
         return
     files = json.loads((tmp_path / "coverage.json").read_text())["files"]
-    names = [p.relative_to(cache.PKG).as_posix() for p in cache._kernel_sources()]
+    names = [n for n in (p.relative_to(cache.PKG).as_posix() for p in cache._kernel_sources())
+             if n not in COMPILE_MACHINERY]
     kernels = {name: files[f"fencesweep/{name}"]["summary"] for name in names if f"fencesweep/{name}" in files}
     run = sum(s["covered_lines"] for s in kernels.values())
     total = sum(s["num_statements"] for s in kernels.values())
