@@ -27,8 +27,10 @@ module (~2.5 s, kernel/jit.py IR_ONLY). While a first run compiles (kernel/cache
 The helper changes the time only: what this process links is the same LLVM IR (bitcode keeps
 it exactly), and without the helper (it fails to start, dies, or FENCESWEEP_COMPILE_HELPER=0)
 this process compiles everything itself (tests/test_jit.py compares the results of both).
-Measured on a 2-core machine: a first cycle ~13 s alone, ~9.5 s with the helper
-(benchmarks/startup.py, results/startup.md).
+Measured on a 2-core machine, side by side (benchmarks/startup.py, results/startup.md): a
+first cycle 12.9-14.8 s alone, 9.1-10.9 s with the helper. A process killed outright (SIGKILL)
+leaves its directory behind (share-PID in the cache directory, a few MB); its helper finishes
+the plan and exits.
 """
 from __future__ import annotations
 
@@ -202,6 +204,7 @@ def shared_compile(plan: str | None, vals: dict | None = None):
         yield
         return
     where = cache.DIR / f"share-{os.getpid()}"
+    steps = load_plan(plan)
     helper = None
     try:
         where.mkdir(parents=True, exist_ok=True)
@@ -210,9 +213,8 @@ def shared_compile(plan: str | None, vals: dict | None = None):
         helper = subprocess.Popen([sys.executable, "-m", "fencesweep.kernel.share", str(where), plan],
                                   stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
                                   stderr=subprocess.DEVNULL)
-        steps = load_plan(plan)
         _session = _Session(where, steps, helper)
-    except OSError:
+    except OSError:  # no directory, no process: this process compiles alone
         _session = None
     try:
         if _session is not None:
