@@ -63,7 +63,8 @@ class Plan(NamedTuple):
 
     #: (entry point, example arguments)
     entry: tuple
-    #: [(kernel function, example arguments)] in the order the entry point's compile meets them
+    #: [(kernel function, example arguments)]: this process compiles them from the front, the
+    #: helper from the back
     kernels: list
     #: prelude(vals): what a run on the parameters vals does before calling the entry point
     prelude: Callable[[dict], object]
@@ -75,6 +76,8 @@ class _Session:
     def __init__(self, where: Path, plan: Plan, helper):
         self.where, self.helper = where, helper
         self.roots = {key(d) for d, _ in plan.kernels}
+        #: the kernel functions given a KernelCache (turn): given none again at the end
+        self.cached: list = []
 
 
 _session: _Session | None = None
@@ -177,6 +180,7 @@ def turn(disp):
         return
     if not isinstance(disp._cache, KernelCache):
         disp._cache = KernelCache(disp.py_func)
+        _session.cached.append(disp)
     k = key(disp)
     if k in _session.roots and not _claim(k):
         while _session.helper is not None and not _done(k).exists() and _helper_running():
@@ -226,6 +230,8 @@ def shared_compile(plan: str | None, vals: dict | None = None):
             entry.compile(signature(args))
         yield
     finally:
+        for disp in _session.cached if _session is not None else ():
+            disp._cache = caching.NullCache()  # the directory goes: nothing more is kept there
         _session = None
         if helper is not None:
             helper.kill()
