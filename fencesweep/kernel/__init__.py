@@ -2,6 +2,7 @@
 
   jit.py       how kernel functions are compiled (one signature, IR for callers, templates)
   cache.py     where compiled entry points are cached; first-run notice and compile lock
+  locator.py   Numba's cache locator for the package's functions
   share.py     a first run's compile on two cores (a helper process and a cache of kernel IR)
   numerics.py  every tolerance and step bound of the engine, each with its reason
   rk.py        Runge-Kutta steps (DOPRI5, RK4), error norm, dense output, step controller

@@ -10,7 +10,7 @@ with <hash> a digest of every kernel source (kernel/ and model/, where any compi
 or a constant it reads lives) and <base> Numba's NUMBA_CACHE_DIR when it is set, else the
 package's __pycache__ when it is writable, else the user's cache directory. An edited
 source gives a new directory: nothing stale is ever loaded, and nothing needs deleting (an old
-directory is left for another checkout that may still use it). kernel/jit.py's `KernelLocator`
+directory is left for another checkout that may still use it). kernel/locator.py's `KernelLocator`
 tells Numba so. This module itself does not import Numba: a command can ask whether the
 kernels are compiled (`is_warm`) before it loads them.
 

@@ -45,7 +45,6 @@ from __future__ import annotations
 
 import functools
 import types as pytypes
-from pathlib import Path
 
 from fencesweep.kernel.numba_setup import numba  # first: Numba loaded without what it does not need
 from numba import njit, types
@@ -57,39 +56,9 @@ from numba.core.compiler_machinery import PassManager
 from numba.core.registry import CPUDispatcher
 
 from fencesweep.kernel import cache, share
+from fencesweep.kernel.locator import KernelLocator
 
 # ------------------------------------------------------------------ where the entry points are cached
-class KernelLocator(caching._CacheLocator):
-    """Numba's cache locator for the package's kernels (module docstring): their cache files go
-    to DIR, under the path of their module, and are valid while the kernel hash is."""
-
-    def __init__(self, py_func, py_file):
-        self._lineno = py_func.__code__.co_firstlineno
-        self._path = cache.DIR / Path(py_file).resolve().relative_to(cache.PKG).parent
-
-    def get_cache_path(self):
-        return str(self._path)
-
-    def get_source_stamp(self):
-        return cache.HASH
-
-    def get_disambiguator(self):
-        return str(self._lineno)
-
-    @classmethod
-    def from_function(cls, py_func, py_file):
-        try:
-            Path(py_file).resolve().relative_to(cache.PKG)
-        except ValueError:  # not a function of this package: Numba's own locators decide
-            return None
-        self = cls(py_func, py_file)
-        try:
-            self.ensure_cache_path()
-        except OSError:  # nowhere to write: Numba's own locators (or no cache) then
-            return None
-        return self
-
-
 def _register() -> None:
     impl = getattr(caching, "CacheImpl", None) or caching._CacheImpl
     if KernelLocator not in impl._locator_classes:

@@ -50,6 +50,7 @@ from numba import typeof
 from numba.core import caching
 
 from fencesweep.kernel import cache
+from fencesweep.kernel.locator import KernelLocator
 from fencesweep.resources import usable_cores
 
 #: the environment variable that turns the helper off ("0")
@@ -100,25 +101,12 @@ def signature(args: tuple) -> tuple:
 
 
 # ------------------------------------------------------------------ the bitcode cache
-class _Locator(caching._CacheLocator):
+class _Locator(KernelLocator):
     """Numba's cache locator for kernel functions during a shared compile: the session's directory."""
 
-    def __init__(self, py_func, py_file):
-        self._lineno = py_func.__code__.co_firstlineno
-        self._path = _session.where / "cache" / Path(py_file).resolve().relative_to(cache.PKG).parent
-
-    def get_cache_path(self):
-        return str(self._path)
-
-    def get_source_stamp(self):
-        return cache.HASH
-
-    def get_disambiguator(self):
-        return str(self._lineno)
-
     @classmethod
-    def from_function(cls, py_func, py_file):
-        return cls(py_func, py_file)
+    def root(cls) -> Path:
+        return _session.where / "cache"
 
 
 class _BitcodeImpl(caching.CompileResultCacheImpl):
@@ -179,8 +167,9 @@ def turn(disp):
         yield
         return
     if not isinstance(disp._cache, KernelCache):
-        disp._cache = KernelCache(disp.py_func)
-        _session.cached.append(disp)
+        with contextlib.suppress(RuntimeError):  # no locator (the directory cannot be made): not shared
+            disp._cache = KernelCache(disp.py_func)
+            _session.cached.append(disp)
     k = key(disp)
     if k in _session.roots and not _claim(k):
         while _session.helper is not None and not _done(k).exists() and _helper_running():
