@@ -74,7 +74,7 @@ def test_the_cache_directory_is_named_by_the_kernel_sources(tmp_path):
         with open({str(tmp_path / "fencesweep" / "model" / "contact.py")!r}, "a") as fh:
             fh.write("\\n# an edit\\n")
         sys.path.insert(0, {str(tmp_path)!r})
-        from fencesweep.kernel import cache, share
+        from fencesweep.kernel import cache
         print(cache.HASH)
     """)
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
@@ -88,9 +88,11 @@ COLD_RUN = textwrap.dedent("""
     import fencesweep
     from fencesweep.kernel import jit
 
+    def dispatchers():
+        return [o for o in gc.get_objects() if isinstance(o, Dispatcher) and o.py_func.__module__.startswith("fencesweep")]
+
     def compiled():
-        return sum(len(o.signatures) for o in gc.get_objects()
-                   if isinstance(o, Dispatcher) and o.py_func.__module__.startswith("fencesweep"))
+        return sum(len(d.signatures) for d in dispatchers())
 
     runs = [dict(case="small_far"), dict(case="long_near", drive="rigid"), dict(case="small_far", drive="free"),
             dict(case="small_far", contact_law="linear"), dict(case="long_near", integrator="rk4", step_factor=8.0),
@@ -102,11 +104,11 @@ COLD_RUN = textwrap.dedent("""
     res.append(fencesweep.simulate("freefall")["peak_force"])
     from fencesweep.kernel import share
     from fencesweep.model.simulate import CYCLE_PLAN
-    disps = [o for o in gc.get_objects() if isinstance(o, Dispatcher) and o.py_func.__module__.startswith("fencesweep")]
+    disps = dispatchers()
     steps = share.load_plan(CYCLE_PLAN)
     plan = [share.signature(args) in d.signatures for d, args in [steps.entry, *steps.kernels]]
     print(json.dumps({"results": res, "most": max(len(d.signatures) for d in disps),
-                      "compiled": sum(len(d.signatures) for d in disps), "plan": plan, "cycle_compiled": cycle_compiled,
+                      "compiled": compiled(), "plan": plan, "cycle_compiled": cycle_compiled,
                       "loaded": sum(sum(d._cache_hits.values()) for d in disps if isinstance(d, jit.KernelDispatcher))}))
 """)
 

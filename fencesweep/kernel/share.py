@@ -136,13 +136,14 @@ def _claim(k: str) -> bool:
     try:
         fd = os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
     except FileExistsError:
-        return path.read_text().strip() == str(os.getpid()) if path.stat().st_size else False
+        return not _claimed_by_other(k)
     with os.fdopen(fd, "w") as fh:
         fh.write(str(os.getpid()))
     return True
 
 
 def _claimed_by_other(k: str) -> bool:
+    """Has the other process claimed plan function k (a claim not yet written counts as its)?"""
     path = _session.where / f"{k}.claim"
     try:
         return path.read_text().strip() != str(os.getpid())

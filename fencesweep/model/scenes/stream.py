@@ -190,11 +190,12 @@ def compile_plan():
     from fencesweep.model.scenes.cycle import events, peaks
     from fencesweep.model.scenes.cycle import run as cycle
 
-    p, o = np.zeros(Lp.N_P), np.zeros(Rs.N_STREAM_CYCLE_RESULTS)
+    p = np.zeros(Lp.N_P)
     traj = np.empty((0, N_TRAJ))
     w = new_work.py_func(p, traj) if hasattr(new_work, "py_func") else new_work(p, traj)
     t = 0.0
     loads, out = np.zeros((1, Lp.N_LOAD)), np.zeros((1, Rs.N_STREAM_CYCLE_RESULTS))
+    o = out[0]  # a cycle's row of results, as cycle_in_stream passes it
     entry = (run_cycles, (p, loads, t, out, traj, np.zeros(2, np.int64)))
     kernels = [(rhs, (t, w.y, p, w.iw, w.K[0], w.aux)), (begin_cycle, (p, w)), (events.find_event, (p, w, t, t, False)),
                (events.event_state, (p, w, t, t, t, 0)), (peaks.track_maxima, (p, w, t, t, t)),
