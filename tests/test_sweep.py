@@ -335,6 +335,20 @@ def test_auto_chunk_size_is_recorded_and_reused_on_resume(tmp_path, monkeypatch)
     pd.testing.assert_frame_equal(pd.read_parquet(explicit.out), pd.read_parquet(ref.out))
 
 
+def test_chunks_start_with_the_most_work():
+    """runs.heaviest_first: a chunk's work is its runs times the seconds per run interpolated at
+    its middle run; the most work starts first, so the light chunks are the last to start."""
+    plan = PL.make_plan(spec())
+    assert (plan.n_models, plan.chunk_size) == (22, 4)  # chunks 0-4 of 4 runs, chunk 5 of 2
+    rising = {0: 1e-3, 21: 3e-3}  # 1 ms at run 0 to 3 ms at run 21, linear in between
+    # work [ms]: 4 x 1.14, 4 x 1.52, 4 x 1.90, 4 x 2.29, 4 x 2.67 and 2 x 2.95 (runs 20-21)
+    assert runs.heaviest_first(plan, list(range(6)), rising) == [4, 3, 2, 1, 5, 0]
+    falling = {0: 3e-3, 21: 1e-3}
+    assert runs.heaviest_first(plan, list(range(6)), falling) == [0, 1, 2, 3, 4, 5]
+    assert runs.heaviest_first(plan, [5, 1, 3], rising) == [3, 1, 5]  # only the chunks asked for
+    assert runs.heaviest_first(plan, [5, 1, 3], {7: 1e-3}) == [5, 1, 3]  # one timed run: no estimate
+
+
 def test_chunk_name_depends_on_spec_and_contents():
     a = PL.make_plan(spec())
     b = PL.make_plan(spec(SPEC.replace("K2: [200, 570]", "K2: [200, 571]")))

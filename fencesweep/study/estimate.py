@@ -178,7 +178,7 @@ def estimate(spec: S.Spec, out: Path, jobs: int, resume: bool = True, backend: s
     compiled = simulate is None and not cache.is_warm(KERNELS.get(spec.scene, "cycle"))
     try:
         t_warm = runs.warm_up(plan, simulate)
-        per_run, k = runs.time_sample(plan, simulate)
+        per_run, k, _ = runs.time_sample(plan, simulate)
     except RuntimeError as exc:
         est = of_plan(plan, out)
         est.unavailable = str(exc)

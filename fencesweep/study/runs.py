@@ -88,17 +88,40 @@ def warm_up(plan: Plan, simulate: Callable | None = None) -> float:
 
 
 def time_sample(plan: Plan, simulate: Callable | None = None, budget: float = 2.0, most: int = 64) -> tuple:
-    """(seconds per model run, runs timed), timed on runs spread evenly over the sweep (after warm_up)."""
+    """(seconds per model run, runs timed, {model run: its seconds}), timed on runs spread evenly
+    over the sweep (after warm_up)."""
     fn = simulate or engine()
     ids = np.unique(np.linspace(0, plan.n_models - 1, min(most, plan.n_models)).round().astype(int))
     t0 = time.perf_counter()
-    k = 0
+    timed = {}
     for m in ids:
+        t = time.perf_counter()
         try:
             fn(plan.model_vals(int(m)), trajectory=False)
         except Exception:  # timed all the same; the sweep records it as a failed row
             pass
-        k += 1
+        timed[int(m)] = time.perf_counter() - t
         if time.perf_counter() - t0 > budget:
             break
-    return (time.perf_counter() - t0) / k, k
+    return (time.perf_counter() - t0) / len(timed), len(timed), timed
+
+
+def heaviest_first(plan: Plan, chunks: list, timed: dict) -> list:
+    """The chunks `chunks` in the order to start them: the most work first (ties by number).
+
+    The light ones then start last, and the workers finish within about one light chunk of each
+    other. In the chunks' own order a sweep whose costly runs come last leaves one worker
+    running its last costly chunk alone: the main job's long_near chunks take ~0.39 s each
+    against ~0.18 s for small_far's, which come first. A chunk's work is estimated as its
+    number of runs times the seconds per run at its middle run, interpolated (np.interp)
+    between the runs of `timed` ({model run: seconds}, time_sample); with fewer than two timed
+    runs the chunks keep their own order."""
+    if len(timed) < 2:
+        return list(chunks)
+    at = np.array(sorted(timed), dtype=float)
+    seconds = np.array([timed[int(m)] for m in at])
+    work = {}
+    for c in chunks:
+        r = plan.chunk_models(c)
+        work[c] = len(r) * float(np.interp((r.start + r.stop - 1) / 2, at, seconds))
+    return sorted(chunks, key=lambda c: (-work[c], c))

@@ -13,7 +13,8 @@ run_sweep orchestrates the steps, each in its own module:
    the work directory (output.py) so that a resumed sweep cuts the same chunks. A chunk's
    file name carries a digest of the spec hash, the package's source hash, its chunk size
    and the model keys of its runs, so a changed spec or engine never reuses a stale chunk.
-3. compute.py: pending chunks run in parallel: locally in worker processes, or on a Dask
+3. compute.py: pending chunks run in parallel, the ones with the most work first (estimated
+   from the timed sample: runs.heaviest_first): locally in worker processes, or on a Dask
    cluster through joblib. A task carries only its chunk's scene numbers; the worker resolves
    them, runs them and writes the chunk atomically into the work directory `OUT.partial/`
    beside the output (with Dask the client writes it), so results never queue up in the
@@ -87,6 +88,7 @@ class _Run:
     serial_below: float | None
     timings: dict = field(default_factory=dict)
     per_run: float | None = None  # seconds per model run, when timed
+    timed: dict = field(default_factory=dict)  # {model run: seconds} of the timed sample
 
 
 def _quiet(msg: str) -> None:
@@ -184,22 +186,24 @@ def _size_chunks(run: _Run, plan: PL.Plan) -> float | None:
     if plan.chunk_size is not None:
         return None
     run.timings["warm_up"] = runs.warm_up(plan, run.simulate)
-    per_run, _ = runs.time_sample(plan, run.simulate, budget=0.5, most=8)
+    per_run, _, run.timed = runs.time_sample(plan, run.simulate, budget=0.5, most=8)
     plan.chunk_size = runs.auto_chunk_size(plan.n_models, per_run)
     return per_run
 
 
 def _compute(run: _Run, plan: PL.Plan, pending: list, done: list) -> None:
     """Warm the engine up (unless sizing the chunks did), choose this process alone when the
-    work left is too small to pay for workers, and run the pending chunks."""
+    work left is too small to pay for workers, and run the pending chunks, the most work first
+    (runs.heaviest_first: the workers then finish together)."""
     if run.per_run is None:
         run.timings["warm_up"] = runs.warm_up(plan, run.simulate)
-        run.per_run, _ = runs.time_sample(plan, run.simulate, budget=0.3, most=8)
+        run.per_run, _, run.timed = runs.time_sample(plan, run.simulate, budget=0.3, most=8)
     if run.local:
         work_left = run.per_run * sum(len(plan.chunk_models(c)) for c in pending)
         if run.jobs > 1 and runs.local_jobs(run.jobs, work_left, run.serial_below) == 1:
             run.log(f"about {work_left:.1f} s of work: running in this process (starting workers costs more)")
             run.jobs = 1
+    pending = runs.heaviest_first(plan, pending, run.timed)
     t = time.perf_counter()
     stats = compute.compute_chunks(plan, run.spec, run.work, pending, done, run.jobs, run.local, run.scheduler,
                                    run.progress, run.simulate, {"salt": plan.salt})
