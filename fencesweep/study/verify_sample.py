@@ -75,12 +75,13 @@ def _cycles(table, names: list) -> tuple:
     """A chunk's columns `names` as flat arrays over its runs' cycles (a stream's run holds a
     list per result: one entry per cycle) and the run (row of the chunk) of each entry."""
     import pyarrow as pa
-    import pyarrow.compute as pc
 
     cols, owner = {}, None
     for name in names:
         col = table.column(name).combine_chunks()
         if pa.types.is_list(col.type):
+            import pyarrow.compute as pc  # a stream's only: its import takes ~30 ms
+
             owner = store.numpy_column(pc.list_parent_indices(col)) if owner is None else owner
             col = col.flatten()
         cols[name] = store.numpy_column(col).astype(float)
