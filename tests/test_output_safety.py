@@ -261,6 +261,9 @@ def test_full_disk_writing_chunks_keeps_them_and_the_rerun_finishes(tmp_path, sp
     work = output.work_root(out) / PL.plan_salt(specfile.load(spec_file))[:16]
     full_disk_after(monkeypatch, 3)
     monkeypatch.setattr(sweep.runs, "SERIAL_BELOW", 0.0)  # 2 jobs: really on forked workers
+    # the chunks in their own order, as one process runs them (workers start the costly ones
+    # first, runs.heaviest_first, which with the fake engine's timings could be any): 0, 1, 2 fit
+    monkeypatch.setattr(sweep.runs, "heaviest_first", lambda plan, chunks, timed: list(chunks))
     assert cli.main(["grid", str(spec_file), "--out", str(out), "--jobs", str(jobs), "--quiet"]) == 1
     err = capfd.readouterr().err  # (the workers' stderr too)
     saved = sorted(p.name for p in work.glob("chunk-*.parquet"))

@@ -84,15 +84,21 @@ def run(tmp_path, name="t.parquet", text=SPEC, **kw):
 
 @pytest.fixture
 def reruns(monkeypatch):
-    """The scenes each verification re-ran, in order of the calls."""
+    """The scenes each verification re-ran, in order of the calls (in this process or on
+    workers of its own: rerun_scenes; on the sweep's workers: submit_reruns)."""
     calls = []
-    real = compute.rerun_scenes
+    real, real_submit = compute.rerun_scenes, compute.submit_reruns
 
     def recording(spec, rows, *a, **k):
         calls.append(list(rows))
         return real(spec, rows, *a, **k)
 
+    def recording_submit(pool, rows, *a, **k):
+        calls.append(list(rows))
+        return real_submit(pool, rows, *a, **k)
+
     monkeypatch.setattr(compute, "rerun_scenes", recording)
+    monkeypatch.setattr(compute, "submit_reruns", recording_submit)
     return calls
 
 
@@ -131,9 +137,13 @@ def test_extremes_are_in_the_sample(tmp_path, reruns):
     assert set(expect.values()) <= sample
 
 
-def test_sample_is_deterministic_whatever_the_jobs(tmp_path, reruns):
+def test_sample_is_deterministic_whatever_the_jobs(tmp_path, reruns, monkeypatch):
     a = run(tmp_path, "a.parquet")
-    b = run(tmp_path, "b.parquet", jobs=2, serial_below=0.0)  # the re-runs on 2 forked workers too
+    started = []
+    real_start = compute.start_pool
+    monkeypatch.setattr(compute, "start_pool", lambda *a: started.append(a) or real_start(*a))
+    b = run(tmp_path, "b.parquet", jobs=2, serial_below=0.0)  # the re-runs on the sweep's 2 forked workers
+    assert len(started) == 1  # one pool of workers for the chunks and the re-runs
     assert sorted(reruns[0]) == sorted(reruns[1]) and a.verify == b.verify
     assert a.out.read_bytes() == b.out.read_bytes()
 

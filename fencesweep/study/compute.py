@@ -194,10 +194,18 @@ def plan_while_loading(spec: S.Spec, progress: bool, params_dir: Path, simulate:
         return planned.result(), loaded
 
 
+def start_pool(stack: contextlib.ExitStack, jobs: int, spec: S.Spec, simulate: Callable | None):
+    """`jobs` local worker processes for the sweep of `spec`, entered on `stack` (they stop when it
+    closes): the chunks run on them and then the verification's re-runs (rerun_scenes), which
+    are too few to pay for starting workers of their own."""
+    return stack.enter_context(_pool(jobs, (spec, simulate), START_METHOD))
+
+
 def run_calls(stack: contextlib.ExitStack, make_calls: Callable, jobs: int, local: bool, scheduler: str | None,
-              shared: tuple) -> Iterator:
-    """The results of calls (fn, *args), as they finish: in this process (jobs 1), on `jobs`
-    local worker processes (entered on `stack`: they stop when it closes) or on Dask.
+              shared: tuple, pool=None) -> Iterator:
+    """The results of calls (fn, *args), as they finish: in this process (jobs 1), on `pool`
+    (start_pool) or else on `jobs` local worker processes (entered on `stack`: they stop when it
+    closes), or on Dask.
     make_calls(where) yields the calls for where = "here", "pool" or "dask"; each fn takes the
     sweep's `shared` (spec, simulate) as its last argument, which a pool's workers already hold
     (_init_worker): calls for "pool" pass None."""
@@ -207,16 +215,17 @@ def run_calls(stack: contextlib.ExitStack, make_calls: Callable, jobs: int, loca
         stack.enter_context(_dask(scheduler))
         return joblib.Parallel(n_jobs=-1, return_as="generator_unordered", batch_size=1, pre_dispatch="2*n_jobs")(
             joblib.delayed(fn)(*args) for fn, *args in make_calls("dask"))
-    if jobs == 1:
+    if pool is None and jobs == 1:
         return (fn(*args) for fn, *args in make_calls("here"))
-    pool = stack.enter_context(_pool(jobs, shared, START_METHOD))
+    pool = pool or stack.enter_context(_pool(jobs, shared, START_METHOD))
     return _completed(pool, make_calls("pool"), ahead=2 * jobs)  # forks here, before a progress bar's thread
 
 
 def compute_chunks(plan: PL.Plan, spec: S.Spec, work: Path, pending: list, done: list, jobs: int,
                    local: bool, scheduler: str | None, progress: bool, simulate: Callable | None,
-                   meta_chunk: dict) -> list:
-    """Run the pending chunks (in this process, a local pool, or Dask) with a progress bar;
+                   meta_chunk: dict, pool=None) -> list:
+    """Run the pending chunks (in this process, on `pool` or a local pool of their own, or on
+    Dask) with a progress bar;
     every chunk is written as it completes (by the worker; with Dask by this process). A
     chunk that cannot be written (a full disk) raises WriteError: the workers are stopped and
     the chunks written so far are kept. Returns the workers' timing records."""
@@ -232,7 +241,7 @@ def compute_chunks(plan: PL.Plan, spec: S.Spec, work: Path, pending: list, done:
 
     stats = []
     with contextlib.ExitStack() as stack:
-        results = run_calls(stack, calls, jobs, local, scheduler, shared)
+        results = run_calls(stack, calls, jobs, local, scheduler, shared, pool)
         bar = stack.enter_context(contextlib.closing(progress_bar(
             plan.n_scenes - plan.skipped, Path(spec.path).stem if spec.path else "sweep", progress,
             initial=int(rows_of[done].sum()) if done else 0)))
@@ -257,16 +266,19 @@ def _rerun(rows: list, step_factor_scale: float, shared: tuple | None = None) ->
     return out
 
 
+def _rerun_groups(rows: list, jobs: int, local: bool) -> list:
+    n_tasks = 1 if local and jobs == 1 else 4 * (jobs if local else 8)
+    return [list(rows[k::n_tasks]) for k in range(min(n_tasks, len(rows)))]
+
+
 def rerun_scenes(spec: S.Spec, rows: list, step_factor_scale: float, jobs: int, local: bool, scheduler: str | None,
                  simulate: Callable | None) -> dict:
     """Run the scenes `rows` again at step_factor x `step_factor_scale` (the verification,
     verify.py), on the same machinery as the chunks; {row: results}."""
     shared = (spec, simulate)
-    n_tasks = 1 if local and jobs == 1 else 4 * (jobs if local else 8)
-    groups = [list(rows[k::n_tasks]) for k in range(min(n_tasks, len(rows)))]
 
     def calls(where: str):
-        for group in groups:
+        for group in _rerun_groups(rows, jobs, local):
             yield (_rerun, group, step_factor_scale, shared if where != "pool" else None)
 
     out = {}
@@ -274,6 +286,21 @@ def rerun_scenes(spec: S.Spec, rows: list, step_factor_scale: float, jobs: int, 
         for pairs in run_calls(stack, calls, jobs, local, scheduler, shared):
             out.update(pairs)
     return out
+
+
+def submit_reruns(pool, rows: list, step_factor_scale: float, jobs: int) -> Callable[[], dict]:
+    """rerun_scenes on the sweep's running workers (start_pool): submitted now, so that they run
+    while this process reads the table's values; returns the function that waits for them and
+    gives {row: results}."""
+    futures = [pool.submit(_rerun, group, step_factor_scale, None) for group in _rerun_groups(rows, jobs, True)]
+
+    def results() -> dict:
+        out = {}
+        for fut in futures:
+            out.update(fut.result())
+        return out
+
+    return results
 
 
 def worker_timings(stats: list) -> dict:

@@ -133,20 +133,21 @@ def run_sweep(spec: S.Spec, out: str | Path | None = None, jobs: int | None = No
 
 
 def _run(run: _Run, plan: PL.Plan, root: Path, verify: bool | int | None, t0: float) -> Outcome:
-    """Size the chunks, compute the missing ones, verify, assemble the table, remove the work directory."""
+    """Size the chunks, compute the missing ones, verify (on the same local workers, which stop
+    after it), assemble the table, remove the work directory."""
     run.per_run = _size_chunks(run, plan)
     output.write_state(run.work, plan)
     done = output.chunks_done(plan, run.work)
     pending = sorted(set(range(plan.n_chunks)) - set(done))
     if done:
         run.log(f"resuming: {len(done)} of {plan.n_chunks} chunks already in {run.work}")
-    if pending:
-        _compute(run, plan, pending, done)
     record = None
-    if verify is not False:
-        record, run.timings["verify"] = V.run_verification(
-            plan, run.work, None if verify is None or verify is True else int(verify), run.jobs, run.local,
-            run.scheduler, run.simulate, run.serial_below, run.per_run)
+    with contextlib.ExitStack() as workers:
+        pool = _compute(run, plan, pending, done, workers) if pending else None
+        if verify is not False:
+            record, run.timings["verify"] = V.run_verification(
+                plan, run.work, None if verify is None or verify is True else int(verify), run.jobs, run.local,
+                run.scheduler, run.simulate, run.serial_below, run.per_run, pool)
     t = time.perf_counter()
     failed = assemble(plan, run.work, run.out, {"verify": record} if record is not None else None)
     run.timings["assemble"] = time.perf_counter() - t
@@ -191,10 +192,12 @@ def _size_chunks(run: _Run, plan: PL.Plan) -> float | None:
     return per_run
 
 
-def _compute(run: _Run, plan: PL.Plan, pending: list, done: list) -> None:
+def _compute(run: _Run, plan: PL.Plan, pending: list, done: list, workers: contextlib.ExitStack):
     """Warm the engine up (unless sizing the chunks did), choose this process alone when the
-    work left is too small to pay for workers, and run the pending chunks, the most work first
-    (runs.heaviest_first: the workers then finish together)."""
+    work left is too small to pay for workers, and run the pending chunks: on workers the most
+    work first (runs.heaviest_first: they then finish together), in this process in their
+    order. Returns the local workers, started
+    on `workers` (they stop when it closes), or None (this process, or Dask)."""
     if run.per_run is None:
         run.timings["warm_up"] = runs.warm_up(plan, run.simulate)
         run.per_run, _, run.timed = runs.time_sample(plan, run.simulate, budget=0.3, most=8)
@@ -203,9 +206,12 @@ def _compute(run: _Run, plan: PL.Plan, pending: list, done: list) -> None:
         if run.jobs > 1 and runs.local_jobs(run.jobs, work_left, run.serial_below) == 1:
             run.log(f"about {work_left:.1f} s of work: running in this process (starting workers costs more)")
             run.jobs = 1
-    pending = runs.heaviest_first(plan, pending, run.timed)
+    if run.jobs > 1 or not run.local:  # in one process the order changes nothing
+        pending = runs.heaviest_first(plan, pending, run.timed)
     t = time.perf_counter()
+    pool = compute.start_pool(workers, run.jobs, run.spec, run.simulate) if run.local and run.jobs > 1 else None
     stats = compute.compute_chunks(plan, run.spec, run.work, pending, done, run.jobs, run.local, run.scheduler,
-                                   run.progress, run.simulate, {"salt": plan.salt})
+                                   run.progress, run.simulate, {"salt": plan.salt}, pool)
     run.timings["compute"] = time.perf_counter() - t
     run.timings.update(compute.worker_timings(stats))
+    return pool

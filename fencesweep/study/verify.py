@@ -60,16 +60,22 @@ def tolerance(vals: dict) -> float:
 
 def verify(plan: PL.Plan, work: Path, n: int | None = None, jobs: int = 1, local: bool = True,
            scheduler: str | None = None, simulate: Callable | None = None, serial_below: float | None = None,
-           per_run: float | None = None) -> dict:
-    """Verify a plan whose chunks are all in `work`: choose the sample, re-run it (on `jobs`
+           per_run: float | None = None, pool=None) -> dict:
+    """Verify a plan whose chunks are all in `work`: choose the sample, re-run it (on `pool`, the
+    sweep's workers still running, while this process reads the table's values; else on `jobs`
     local processes, in this one when the work is small, or on Dask) and compare; the record."""
     sample = VS.choose(plan, work, n)
     spec = plan.spec
     rows = [int(plan.first_row[m]) for m in sample.models]
-    if local and jobs > 1:
-        jobs = runs.local_jobs(jobs, (per_run or 1e-3) * VS.RERUN_COST * len(rows), serial_below)
-    reruns = compute.rerun_scenes(spec, rows, STEP_FACTOR_SCALE, jobs, local, scheduler, simulate)
-    table = _table_values(plan, work, sample.models)
+    if pool is not None:
+        rerun_results = compute.submit_reruns(pool, rows, STEP_FACTOR_SCALE, jobs)
+        table = _table_values(plan, work, sample.models)
+        reruns = rerun_results()
+    else:
+        if local and jobs > 1:
+            jobs = runs.local_jobs(jobs, (per_run or 1e-3) * VS.RERUN_COST * len(rows), serial_below)
+        reruns = compute.rerun_scenes(spec, rows, STEP_FACTOR_SCALE, jobs, local, scheduler, simulate)
+        table = _table_values(plan, work, sample.models)
     vals = [spec.resolve(i) for i in rows]
     found = [_compare(spec.scene, table[m], reruns[i], _freefall(v, table[m]))
              for m, i, v in zip(sample.models, rows, vals)]
@@ -238,10 +244,11 @@ def _record(plan: PL.Plan, sample: VS.Sample, rows: list, vals: list, found: lis
 
 
 def run_verification(plan: PL.Plan, work: Path, n: int | None, jobs: int, local: bool, scheduler: str | None,
-                     simulate: Callable | None, serial_below: float | None, per_run: float | None) -> tuple:
+                     simulate: Callable | None, serial_below: float | None, per_run: float | None,
+                     pool=None) -> tuple:
     """verify(...) and the seconds it took."""
     t = time.perf_counter()
-    record = verify(plan, work, n, jobs, local, scheduler, simulate, serial_below, per_run)
+    record = verify(plan, work, n, jobs, local, scheduler, simulate, serial_below, per_run, pool)
     return record, time.perf_counter() - t
 
 
