@@ -349,6 +349,17 @@ def test_chunks_start_with_the_most_work():
     assert runs.heaviest_first(plan, [5, 1, 3], {7: 1e-3}) == [5, 1, 3]  # one timed run: no estimate
 
 
+def test_progress_bar_off_shows_nothing_and_imports_no_tqdm():
+    """An off bar (a planning pass under 20 000 scenes, --quiet) takes a bar's calls without
+    importing tqdm (~35 ms of the planning helper the parent waits for); an on bar is tqdm's."""
+    code = ("import sys; from fencesweep.study import progress as P; b = P.bar(5, 'x', False); b.update(2); "
+            "b.total += 1; b.close(); assert 'tqdm' not in sys.modules, 'tqdm imported'; "
+            "on = P.bar(5, 'x', True); on.close(); print(type(on).__module__)")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.strip().startswith("tqdm")
+
+
 def test_chunk_name_depends_on_spec_and_contents():
     a = PL.make_plan(spec())
     b = PL.make_plan(spec(SPEC.replace("K2: [200, 570]", "K2: [200, 571]")))
