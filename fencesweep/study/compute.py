@@ -196,7 +196,7 @@ def plan_while_loading(spec: S.Spec, progress: bool, params_dir: Path, simulate:
 
 def start_pool(stack: contextlib.ExitStack, jobs: int, spec: S.Spec, simulate: Callable | None):
     """`jobs` local worker processes for the sweep of `spec`, entered on `stack` (they stop when it
-    closes): the chunks run on them and then the verification's re-runs (rerun_scenes), which
+    closes): the chunks run on them, and then the verification's re-runs (submit_reruns), which
     are too few to pay for starting workers of their own."""
     return stack.enter_context(_pool(jobs, (spec, simulate), START_METHOD))
 

@@ -196,8 +196,8 @@ def _compute(run: _Run, plan: PL.Plan, pending: list, done: list, workers: conte
     """Warm the engine up (unless sizing the chunks did), choose this process alone when the
     work left is too small to pay for workers, and run the pending chunks: on workers the most
     work first (runs.heaviest_first: they then finish together), in this process in their
-    order. Returns the local workers, started
-    on `workers` (they stop when it closes), or None (this process, or Dask)."""
+    order. Returns the local workers, started on `workers` (they stop when it closes), or None
+    (this process, or Dask)."""
     if run.per_run is None:
         run.timings["warm_up"] = runs.warm_up(plan, run.simulate)
         run.per_run, _, run.timed = runs.time_sample(plan, run.simulate, budget=0.3, most=8)
