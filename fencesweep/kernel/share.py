@@ -16,8 +16,10 @@ module (~2.5 s, kernel/jit.py IR_ONLY). While a first run compiles (kernel/cache
     points these need). This process compiles the list from the front, then the entry point
     (whose compile then finds its kernel functions compiled), before its run's own
     preparation, which then finds the prelude's results. The helper (`python -m
-    fencesweep.kernel.share DIR PLAN`) runs the prelude for the run's parameters, then compiles
-    the list from the back and stops where this process has arrived. A plan function is
+    fencesweep.kernel.share DIR PLAN`) compiles the list from the back, stops where this
+    process has arrived, then runs the prelude for the run's parameters (while this process
+    compiles the entry point alone; measured, 12 interleaved pairs of first cycles: 9.74 ->
+    9.19 s, the median, against the prelude first). A plan function is
     claimed by whichever process starts it first (a file created exclusively); one that
     reaches a function the other has claimed waits for it (this process, while the helper
     runs) or compiles it too (the helper);
@@ -230,17 +232,20 @@ def shared_compile(plan: str | None, vals: dict | None = None):
 
 
 def helper_main(where: str, plan: str) -> None:
-    """The helper: the plan's prelude, then its kernel functions from the back until this
-    process's claims are reached."""
+    """The helper: the plan's kernel functions from the back until this process's claims are
+    reached, then the plan's prelude. This process needs the prelude's results only for its
+    run's preparation, after the entry point's compile (its serial part, during which the
+    helper has nothing else to do), while every kernel function the helper compiles first
+    shortens the part the two processes share."""
     global _session
     steps = load_plan(plan)
     _session = _Session(Path(where), steps, None)
-    with contextlib.suppress(Exception):  # the prelude only saves time: the run does it again if it failed
-        steps.prelude(json.loads((_session.where / "vals.json").read_text()))
     for disp, args in reversed(steps.kernels):
         if _claimed_by_other(key(disp)):
             break  # the other process has come this far
         disp.compile(signature(args))
+    with contextlib.suppress(Exception):  # the prelude only saves time: the run does it again if it failed
+        steps.prelude(json.loads((_session.where / "vals.json").read_text()))
 
 
 if __name__ == "__main__":  # run as a script, this file is not the module the kernels use
