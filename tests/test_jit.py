@@ -107,9 +107,11 @@ COLD_RUN = textwrap.dedent("""
     disps = dispatchers()
     steps = share.load_plan(CYCLE_PLAN)
     plan = [share.signature(args) in d.signatures for d, args in [steps.entry, *steps.kernels]]
+    from fencesweep.model import drive
     print(json.dumps({"results": res, "most": max(len(d.signatures) for d in disps),
                       "compiled": compiled(), "plan": plan, "cycle_compiled": cycle_compiled,
-                      "loaded": sum(sum(d._cache_hits.values()) for d in disps if isinstance(d, jit.KernelDispatcher))}))
+                      "loaded": sum(sum(d._cache_hits.values()) for d in disps if isinstance(d, jit.KernelDispatcher)),
+                      "rocker_loaded": sum(drive.fill_rocker_table._cache_hits.values())}))
 """)
 
 
@@ -136,6 +138,9 @@ def test_two_processes_on_an_empty_cache_both_finish_and_every_function_compiles
     # and the helper compiled some of them (kernel/share.py); its directory is gone
     assert cold["plan"] and all(cold["plan"])
     assert cold["loaded"] > 0
+    # the helper's prelude compiled the crank-rocker table's entry point, which this process,
+    # having waited for the prelude after its own compile, loaded instead of compiling it again
+    assert cold["rocker_loaded"] == 1
     assert list(tmp_path.glob("fencesweep-*/share-*")) == []
     # the same results with the compile all in one process
     env[share.HELPER_ENV] = "0"
@@ -143,7 +148,7 @@ def test_two_processes_on_an_empty_cache_both_finish_and_every_function_compiles
     alone = json.loads(subprocess.run([sys.executable, "-c", COLD_RUN], env=env, capture_output=True, text=True,
                                       check=True).stdout.strip().splitlines()[-1])
     assert alone["results"] == here
-    assert alone["loaded"] == 0 and alone["most"] == 1
+    assert alone["loaded"] == 0 and alone["most"] == 1 and alone["rocker_loaded"] == 0
 
 
 def test_a_warm_process_says_nothing(capfd):

@@ -19,7 +19,8 @@ module (~2.5 s, kernel/jit.py IR_ONLY). While a first run compiles (kernel/cache
     fencesweep.kernel.share DIR PLAN`) compiles the list from the back, stops where this
     process has arrived, then runs the prelude for the run's parameters (while this process
     compiles the entry point alone; measured, 12 interleaved pairs of first cycles: 9.74 ->
-    9.19 s, the median, against the prelude first). A plan function is
+    9.19 s, the median, against the prelude first), which this process waits for after the
+    entry point if the helper is still at it. A plan function is
     claimed by whichever process starts it first (a file created exclusively); one that
     reaches a function the other has claimed waits for it (this process, while the helper
     runs) or compiles it too (the helper);
@@ -157,6 +158,10 @@ def _done(k: str) -> Path:
     return _session.where / f"{k}.done"
 
 
+def _prelude_done() -> Path:
+    return _session.where / "prelude.done"
+
+
 def _helper_running() -> bool:
     return _session.helper is not None and _session.helper.poll() is None
 
@@ -220,6 +225,8 @@ def shared_compile(plan: str | None, vals: dict | None = None):
                 disp.compile(signature(args))
             entry, args = steps.entry
             entry.compile(signature(args))
+            while not _prelude_done().exists() and _helper_running():
+                time.sleep(POLL)  # the run's preparation needs its results: waiting beats doing it again
         yield
     finally:
         for disp in _session.cached if _session is not None else ():
@@ -244,8 +251,12 @@ def helper_main(where: str, plan: str) -> None:
         if _claimed_by_other(key(disp)):
             break  # the other process has come this far
         disp.compile(signature(args))
-    with contextlib.suppress(Exception):  # the prelude only saves time: the run does it again if it failed
-        steps.prelude(json.loads((_session.where / "vals.json").read_text()))
+    try:
+        with contextlib.suppress(Exception):  # the prelude only saves time: the run does it again if it failed
+            steps.prelude(json.loads((_session.where / "vals.json").read_text()))
+    finally:
+        with contextlib.suppress(OSError):
+            _prelude_done().touch()
 
 
 if __name__ == "__main__":  # run as a script, this file is not the module the kernels use
