@@ -17,13 +17,13 @@ module (~2.5 s, kernel/jit.py IR_ONLY). While a first run compiles (kernel/cache
     (whose compile then finds its kernel functions compiled), before its run's own
     preparation, which then finds the prelude's results. The helper (`python -m
     fencesweep.kernel.share DIR PLAN`) compiles the list from the back, stops where this
-    process has arrived, then runs the prelude for the run's parameters (while this process
-    compiles the entry point alone; measured, 12 interleaved pairs of first cycles: 9.74 ->
-    9.19 s, the median, against the prelude first), which this process waits for after the
-    entry point if the helper is still at it. A plan function is
-    claimed by whichever process starts it first (a file created exclusively); one that
-    reaches a function the other has claimed waits for it (this process, while the helper
-    runs) or compiles it too (the helper);
+    process has arrived, then runs the prelude for the run's parameters while this process
+    compiles the entry point alone (measured, 12 interleaved pairs of first cycles: 9.74 ->
+    9.19 s, the median, against the prelude first); this process waits for the prelude after
+    the entry point if the helper is still at it. A plan function is claimed by whichever
+    process starts it first (a file created exclusively); one that reaches a function the
+    other has claimed waits for it (this process, while the helper runs) or compiles it too
+    (the helper);
   * at the end the helper is stopped and the directory removed: only the entry points stay
     cached (kernel/cache.py).
 
@@ -155,11 +155,12 @@ def _claimed_by_other(k: str) -> bool:
 
 
 def _done(k: str) -> Path:
+    """The file that says plan function k (or, for k = PRELUDE, the prelude) is finished."""
     return _session.where / f"{k}.done"
 
 
-def _prelude_done() -> Path:
-    return _session.where / "prelude.done"
+#: the prelude's name among the done files (no kernel function's key: those have a module)
+PRELUDE = "prelude"
 
 
 def _helper_running() -> bool:
@@ -225,7 +226,7 @@ def shared_compile(plan: str | None, vals: dict | None = None):
                 disp.compile(signature(args))
             entry, args = steps.entry
             entry.compile(signature(args))
-            while not _prelude_done().exists() and _helper_running():
+            while not _done(PRELUDE).exists() and _helper_running():
                 time.sleep(POLL)  # the run's preparation needs its results: waiting beats doing it again
         yield
     finally:
@@ -256,7 +257,7 @@ def helper_main(where: str, plan: str) -> None:
             steps.prelude(json.loads((_session.where / "vals.json").read_text()))
     finally:
         with contextlib.suppress(OSError):
-            _prelude_done().touch()
+            _done(PRELUDE).touch()
 
 
 if __name__ == "__main__":  # run as a script, this file is not the module the kernels use

@@ -182,9 +182,9 @@ def compile_plan():
     run_cycles is called with and calls them with, the kernel functions split between the two
     processes from both ends (this process from the front: those the step loop calls; the
     helper from the back: the rest and the work arrays), and the preparation of a run's
-    parameters (model/prepare.py), which the helper does first. A function renamed or an
-    argument retyped here only costs time; tests/test_jit.py checks that each is what a run
-    compiles."""
+    parameters (model/prepare.py), which the helper does after its kernel functions. A
+    function renamed or an argument retyped here only costs time; tests/test_jit.py checks
+    that each is what a run compiles."""
     from fencesweep.kernel.share import Plan
     from fencesweep.model.prepare import prepare
     from fencesweep.model.scenes.cycle import events, peaks
