@@ -21,7 +21,7 @@ import pytest
 
 from fencesweep.model import simulate as api
 from fencesweep import cli
-from fencesweep.study import assemble, compute, output, runs, store, sweep
+from fencesweep.study import assemble, chunks, compute, output, runs, store, sweep
 from fencesweep.study import plan as PL
 from fencesweep.model import params as P
 from fencesweep.model import results as R
@@ -471,6 +471,29 @@ def test_assembly_memory_is_bounded_by_blocks(tmp_path, monkeypatch):
     res = run(tmp_path)
     pd.testing.assert_frame_equal(pd.read_parquet(ref.out), pd.read_parquet(res.out))
     assert pq.ParquetFile(res.out).metadata.num_row_groups == math.ceil(40 / 7)
+
+
+def test_each_chunk_is_read_once_and_holding_none_gives_the_same_table(tmp_path, monkeypatch):
+    """The chunks are read as they finish (jobs 1 and 2) and the verification's sample, its table
+    values and the assembly take them from memory: one read per chunk. Holding none (HOLD_BYTES
+    0, a sweep too large to hold) reads them again each time and writes the same bytes."""
+    made = []
+    real = chunks.ChunkTables.__init__
+
+    def recording(self, *a, **k):
+        real(self, *a, **k)
+        made.append(self)
+
+    monkeypatch.setattr(chunks.ChunkTables, "__init__", recording)
+    one = run(tmp_path, "one.parquet", jobs=1)
+    two = run(tmp_path, "two.parquet", jobs=2, serial_below=0.0)
+    assert one.verify is not None and two.verify is not None
+    assert [t.reads for t in made] == [one.n_chunks, two.n_chunks] and one.n_chunks > 1
+    monkeypatch.setattr(chunks, "HOLD_BYTES", 0)
+    made.clear()
+    none = run(tmp_path, "none.parquet", jobs=1)
+    assert made[0].reads > 2 * none.n_chunks  # the sample's scores, its table values, the assembly
+    assert none.out.read_bytes() == one.out.read_bytes() == two.out.read_bytes()
 
 
 # ------------------------------------------------------------------ Dask

@@ -167,18 +167,20 @@ def _finish(lay: AM.Layout, refiner: A.Refiner, ev: Evaluator, out: Path, work: 
     """The cycles run as a Plan: verified at tol / 10, assembled into T; T_points written."""
     from fencesweep.study import adaptive_points as APT
     from fencesweep.study.assemble import assemble
+    from fencesweep.study.chunks import ChunkTables
 
     plan = _plan(lay, ev, work)
+    tables = ChunkTables(plan, work)  # the verification and the assembly read each chunk once
     record = APT.record(lay, refiner, ev)
     vrec = None
     if verify is not False:
         vrec, timings["verify"] = V.run_verification(
             plan, work, None if verify is None or verify is True else int(verify), run["jobs"], run["local"],
-            run["scheduler"], run["simulate"], run["serial_below"], run["per_cycle"])
+            run["scheduler"], run["simulate"], run["serial_below"], run["per_cycle"], tables=tables)
     t = time.perf_counter()
     counts = {"scenes": plan.n_models, "skipped": 0, "model_runs": plan.n_models, "full_grid_scenes": lay.n_full}
     meta = {"adaptive": record, "counts": counts} | ({"verify": vrec} if vrec is not None else {})
-    failed = assemble(plan, work, out, meta)
+    failed = assemble(plan, work, out, meta, tables)
     timings["assemble"] = time.perf_counter() - t
     path, summary = APT.write(lay, refiner, ev, out, record)
     return {"points_path": path, "points": summary, "record": record, "verify": vrec, "failed": failed}

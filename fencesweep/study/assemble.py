@@ -15,6 +15,7 @@ import numpy as np
 
 from fencesweep.study import plan as PL
 from fencesweep.study import store
+from fencesweep.study.chunks import ChunkTables, tables_of
 
 CHUNK_CACHE = 8  # chunks held in memory while assembling
 
@@ -47,9 +48,10 @@ def _table_rows(scene: str, cols: dict, n_params: int) -> dict:
     return store.explode_streams(cols, n_params) if scene == "stream" else cols
 
 
-def assemble(plan: PL.Plan, work: Path, out: Path, meta: dict | None = None) -> int:
+def assemble(plan: PL.Plan, work: Path, out: Path, meta: dict | None = None, tables: ChunkTables | None = None) -> int:
     """Write the table: rows in scene order, parameters from the planning pass, results from the
-    chunks; `meta` is added to its schema metadata (e.g. {"verify": record}).
+    chunks (`tables`: as the sweep read them, chunks.py); `meta` is added to its schema metadata
+    (e.g. {"verify": record}).
 
     Memory holds one block of rows and at most CHUNK_CACHE chunks. Returns the number of
     rows whose run raised (status 'failed: exception ...').
@@ -60,12 +62,13 @@ def assemble(plan: PL.Plan, work: Path, out: Path, meta: dict | None = None) -> 
     np_type = {"double": np.float64, "int64": np.int64, "bool": np.bool_}
     cache: OrderedDict = OrderedDict()
     failed = 0
+    tables = tables_of(plan, work, tables)
 
     def chunk(c: int) -> dict:
         if c in cache:
             cache.move_to_end(c)
             return cache[c]
-        data = store.read_chunk(work / plan.chunk_name(c))
+        data = store.chunk_arrays(tables.read(c))
         cache[c] = data
         if len(cache) > CHUNK_CACHE:
             cache.popitem(last=False)

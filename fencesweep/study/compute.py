@@ -223,10 +223,11 @@ def run_calls(stack: contextlib.ExitStack, make_calls: Callable, jobs: int, loca
 
 def compute_chunks(plan: PL.Plan, spec: S.Spec, work: Path, pending: list, done: list, jobs: int,
                    local: bool, scheduler: str | None, progress: bool, simulate: Callable | None,
-                   meta_chunk: dict, pool=None) -> list:
+                   meta_chunk: dict, pool=None, finished: Callable[[int], None] | None = None) -> list:
     """Run the pending chunks (in this process, on `pool` or a local pool of their own, or on
     Dask) with a progress bar;
-    every chunk is written as it completes (by the worker; with Dask by this process). A
+    every chunk is written as it completes (by the worker; with Dask by this process), then
+    `finished(chunk)` is called here (chunks.ChunkTables.finished reads it). A
     chunk that cannot be written (a full disk) raises WriteError: the workers are stopped and
     the chunks written so far are kept. Returns the workers' timing records."""
     rows_of = plan.chunk_rows()
@@ -251,6 +252,8 @@ def compute_chunks(plan: PL.Plan, spec: S.Spec, work: Path, pending: list, done:
                                   dict(meta_chunk, chunk=c))
             stats.append(stat)
             bar.update(int(rows_of[c]))
+            if finished is not None:
+                finished(c)
     return stats
 
 

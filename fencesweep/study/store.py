@@ -343,9 +343,9 @@ def chunk_complete(path: str | Path, n_rows: int) -> bool:
         return False
 
 
-def read_chunk(path: str | Path) -> dict:
-    """A chunk as {column: numpy array} (strings as object arrays), `_model` included."""
-    table = pq.ParquetFile(path).read()
+def chunk_arrays(table: pa.Table) -> dict:
+    """A chunk's table (study/chunks.py) as {column: numpy array} (strings as object arrays),
+    `_model` included."""
     return {name: numpy_column(table.column(name)) for name in table.column_names}
 
 

@@ -18,7 +18,8 @@ run_sweep orchestrates the steps, each in its own module:
    cluster through joblib. A task carries only its chunk's scene numbers; the worker resolves
    them, runs them and writes the chunk atomically into the work directory `OUT.partial/`
    beside the output (with Dask the client writes it), so results never queue up in the
-   parent. A killed sweep, rerun, computes only the chunks that are missing.
+   parent. A killed sweep, rerun, computes only the chunks that are missing. This process
+   reads each chunk as it is written (chunks.py), for the steps below to take from memory.
    On Linux the local workers are forked from this process once it has loaded the
    compiled kernels (which takes about as long as planning, so a forked helper plans
    meanwhile): they start at once and load nothing. Elsewhere they are loky processes.
@@ -50,6 +51,7 @@ from fencesweep.study import verify as V
 from fencesweep.study import plan as PL
 from fencesweep.study import spec as S
 from fencesweep.study.assemble import assemble
+from fencesweep.study.chunks import ChunkTables
 from fencesweep.study.estimate import describe_plan
 
 
@@ -142,14 +144,15 @@ def _run(run: _Run, plan: PL.Plan, root: Path, verify: bool | int | None, t0: fl
     if done:
         run.log(f"resuming: {len(done)} of {plan.n_chunks} chunks already in {run.work}")
     record = None
+    tables = ChunkTables(plan, run.work)  # each chunk read once: as it finishes, or when first needed
     with contextlib.ExitStack() as workers:
-        pool = _compute(run, plan, pending, done, workers) if pending else None
+        pool = _compute(run, plan, pending, done, workers, tables) if pending else None
         if verify is not False:
             record, run.timings["verify"] = V.run_verification(
                 plan, run.work, None if verify is None or verify is True else int(verify), run.jobs, run.local,
-                run.scheduler, run.simulate, run.serial_below, run.per_run, pool)
+                run.scheduler, run.simulate, run.serial_below, run.per_run, pool, tables)
     t = time.perf_counter()
-    failed = assemble(plan, run.work, run.out, {"verify": record} if record is not None else None)
+    failed = assemble(plan, run.work, run.out, {"verify": record} if record is not None else None, tables)
     run.timings["assemble"] = time.perf_counter() - t
     shutil.rmtree(root)
     return Outcome(run.out, plan.n_scenes - plan.skipped, plan.n_models, plan.n_chunks, len(pending), len(done),
@@ -192,12 +195,13 @@ def _size_chunks(run: _Run, plan: PL.Plan) -> float | None:
     return per_run
 
 
-def _compute(run: _Run, plan: PL.Plan, pending: list, done: list, workers: contextlib.ExitStack):
+def _compute(run: _Run, plan: PL.Plan, pending: list, done: list, workers: contextlib.ExitStack,
+             tables: ChunkTables):
     """Warm the engine up (unless sizing the chunks did), choose this process alone when the
     work left is too small to pay for workers, and run the pending chunks: on workers the most
     work first (runs.heaviest_first: they then finish together), in this process in their
-    order. Returns the local workers, started on `workers` (they stop when it closes), or None
-    (this process, or Dask)."""
+    order; each chunk, once written, is read here into `tables`. Returns the local workers,
+    started on `workers` (they stop when it closes), or None (this process, or Dask)."""
     if run.per_run is None:
         run.timings["warm_up"] = runs.warm_up(plan, run.simulate)
         run.per_run, _, run.timed = runs.time_sample(plan, run.simulate, budget=0.3, most=8)
@@ -211,7 +215,7 @@ def _compute(run: _Run, plan: PL.Plan, pending: list, done: list, workers: conte
     t = time.perf_counter()
     pool = compute.start_pool(workers, run.jobs, run.spec, run.simulate) if run.local and run.jobs > 1 else None
     stats = compute.compute_chunks(plan, run.spec, run.work, pending, done, run.jobs, run.local, run.scheduler,
-                                   run.progress, run.simulate, {"salt": plan.salt}, pool)
+                                   run.progress, run.simulate, {"salt": plan.salt}, pool, tables.finished)
     run.timings["compute"] = time.perf_counter() - t
     run.timings.update(compute.worker_timings(stats))
     return pool

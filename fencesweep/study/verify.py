@@ -29,12 +29,12 @@ from pathlib import Path
 from typing import Callable
 
 import numpy as np
-import pyarrow.parquet as pq
 
 from fencesweep.kernel import numerics as NU
 from fencesweep.study import accuracy, compute, runs, store
 from fencesweep.study import plan as PL
 from fencesweep.study import verify_sample as VS
+from fencesweep.study.chunks import ChunkTables, tables_of
 
 #: the re-run's step_factor, relative to the table's: tolerance TOL x step_factor^5 / 10
 STEP_FACTOR_SCALE = 10 ** (-1 / NU.TOL_EXPONENT)
@@ -60,29 +60,31 @@ def tolerance(vals: dict) -> float:
 
 def verify(plan: PL.Plan, work: Path, n: int | None = None, jobs: int = 1, local: bool = True,
            scheduler: str | None = None, simulate: Callable | None = None, serial_below: float | None = None,
-           per_run: float | None = None, pool=None) -> dict:
+           per_run: float | None = None, pool=None, tables: ChunkTables | None = None) -> dict:
     """Verify a plan whose chunks are all in `work`: choose the sample, re-run it (on `pool`, the
     sweep's workers still running, while this process reads the table's values; else on `jobs`
-    local processes, in this one when the work is small, or on Dask) and compare; the record."""
-    sample = VS.choose(plan, work, n)
+    local processes, in this one when the work is small, or on Dask) and compare; the record.
+    `tables`: the chunks as the sweep read them (chunks.py)."""
+    tables = tables_of(plan, work, tables)
+    sample = VS.choose(plan, work, n, tables)
     spec = plan.spec
     rows = [int(plan.first_row[m]) for m in sample.models]
     if pool is not None:
         rerun_results = compute.submit_reruns(pool, rows, STEP_FACTOR_SCALE, jobs)
-        table = _table_values(plan, work, sample.models)
+        table = _table_values(plan, tables, sample.models)
         reruns = rerun_results()
     else:
         if local and jobs > 1:
             jobs = runs.local_jobs(jobs, (per_run or 1e-3) * VS.RERUN_COST * len(rows), serial_below)
         reruns = compute.rerun_scenes(spec, rows, STEP_FACTOR_SCALE, jobs, local, scheduler, simulate)
-        table = _table_values(plan, work, sample.models)
+        table = _table_values(plan, tables, sample.models)
     vals = [spec.resolve(i) for i in rows]
     found = [_compare(spec.scene, table[m], reruns[i], _freefall(v, table[m]))
              for m, i, v in zip(sample.models, rows, vals)]
     return _record(plan, sample, rows, vals, found)
 
 
-def _table_values(plan: PL.Plan, work: Path, models: list) -> dict:
+def _table_values(plan: PL.Plan, tables: ChunkTables, models: list) -> dict:
     """{model run: {result: its values}} of the table (a list per result for a stream: its
     cycles), from the chunks that the table is assembled from."""
     by_chunk: dict = {}
@@ -90,12 +92,12 @@ def _table_values(plan: PL.Plan, work: Path, models: list) -> dict:
         by_chunk.setdefault(m // plan.chunk_size, []).append(m)
     out = {}
     for c, ms in by_chunk.items():
-        table = pq.ParquetFile(work / plan.chunk_name(c)).read()
+        table = tables.read(c)
         local = [m - c * plan.chunk_size for m in ms]
         cols = {name: _rows(table.column(name).combine_chunks(), local) for name in table.column_names}
         for k, m in enumerate(ms):
             if cols["_model"][k] != m:
-                raise RuntimeError(f"chunk {c} in {work} does not hold the runs it should; rerun with --no-resume")
+                raise RuntimeError(f"chunk {c} in {tables.work} does not hold the runs it should; rerun with --no-resume")
             out[m] = {name: values[k] for name, values in cols.items() if name != "_model"}
     return out
 
@@ -245,10 +247,10 @@ def _record(plan: PL.Plan, sample: VS.Sample, rows: list, vals: list, found: lis
 
 def run_verification(plan: PL.Plan, work: Path, n: int | None, jobs: int, local: bool, scheduler: str | None,
                      simulate: Callable | None, serial_below: float | None, per_run: float | None,
-                     pool=None) -> tuple:
+                     pool=None, tables: ChunkTables | None = None) -> tuple:
     """verify(...) and the seconds it took."""
     t = time.perf_counter()
-    record = verify(plan, work, n, jobs, local, scheduler, simulate, serial_below, per_run, pool)
+    record = verify(plan, work, n, jobs, local, scheduler, simulate, serial_below, per_run, pool, tables)
     return record, time.perf_counter() - t
 
 

@@ -26,6 +26,7 @@ import pyarrow.parquet as pq
 from fencesweep.kernel import numerics as NU
 from fencesweep.study import plan as PL
 from fencesweep.study import store
+from fencesweep.study.chunks import ChunkTables, tables_of
 
 MIN_RUNS = 16  # the fewest runs a default sample re-runs
 SHARE = 0.01  # ... or this share of the model runs, whichever is more
@@ -115,15 +116,17 @@ def _columns(scene: str) -> list:
     return sorted({c for _, names in EXTREMES[kind(scene)] for c in names})
 
 
-def scores(plan: PL.Plan, work) -> tuple:
-    """({criterion: score per model run}, the table's steps per model run), read from the chunks."""
+def scores(plan: PL.Plan, work, tables: ChunkTables | None = None) -> tuple:
+    """({criterion: score per model run}, the table's steps per model run), read from the chunks
+    (`tables`: those the sweep read as they finished, chunks.py)."""
     scene, n = plan.spec.scene, plan.n_models
     names = _columns(scene)
     out = {name: np.full(n, np.inf) for name, _ in EXTREMES[kind(scene)]}
     steps = np.zeros(n)
     dalpha = dalpha_perm(plan, work) if kind(scene) == "cycle" else None
+    tables = tables_of(plan, work, tables)
     for c in range(plan.n_chunks):
-        table = pq.ParquetFile(work / plan.chunk_name(c)).read(columns=names + ["_model"])
+        table = tables.read(c).select(names + ["_model"])
         cols, owner = _cycles(table, names)
         model = store.numpy_column(table.column("_model"))[owner]
         per = _cycle_scores(cols, dalpha[model]) if dalpha is not None else _impact_scores(cols)
@@ -161,10 +164,10 @@ def dalpha_perm(plan: PL.Plan, work) -> np.ndarray:
     return out
 
 
-def choose(plan: PL.Plan, work, n: int | None = None) -> Sample:
-    """The sample of a plan whose chunks are all in `work`: `n` runs (None: the default size,
-    under the cost cap), the extremes first, then random (module docstring)."""
-    crit, steps = scores(plan, work)
+def choose(plan: PL.Plan, work, n: int | None = None, tables: ChunkTables | None = None) -> Sample:
+    """The sample of a plan whose chunks are all in `work` (and `tables`, scores): `n` runs (None:
+    the default size, under the cost cap), the extremes first, then random (module docstring)."""
+    crit, steps = scores(plan, work, tables)
     target = default_size(plan.n_models) if n is None else min(int(n), plan.n_models)
     order, extremes = _extremes(crit, target)
     seed = int(plan.spec.hash[:16], 16)
