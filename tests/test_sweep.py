@@ -23,6 +23,7 @@ from fencesweep.model import simulate as api
 from fencesweep import cli
 from fencesweep.study import assemble, chunks, compute, output, runs, store, sweep
 from fencesweep.study import plan as PL
+from fencesweep.study import verify as V
 from fencesweep.model import params as P
 from fencesweep.model import results as R
 from fencesweep.study import spec as S
@@ -494,6 +495,36 @@ def test_each_chunk_is_read_once_and_holding_none_gives_the_same_table(tmp_path,
     none = run(tmp_path, "none.parquet", jobs=1)
     assert made[0].reads > 2 * none.n_chunks  # the sample's scores, its table values, the assembly
     assert none.out.read_bytes() == one.out.read_bytes() == two.out.read_bytes()
+
+
+def test_the_verification_finishes_between_the_first_block_and_the_write(tmp_path, monkeypatch):
+    """The assembly makes its first block, then takes the metadata (the sweep's verification
+    finishes then, its re-runs on the workers meanwhile), then opens the table's file; the
+    record is the one in the table."""
+    events = []
+    real_blocks, real_open, real_begin = assemble._blocks, store.TableWriter.__init__, V.begin
+
+    def blocks(*a):
+        for b in real_blocks(*a):
+            events.append("block")
+            yield b
+
+    def opening(self, *a, **k):
+        events.append("open")
+        real_open(self, *a, **k)
+
+    def begin(*a, **k):
+        finish = real_begin(*a, **k)
+        events.append("begin")
+        return lambda: events.append("record") or finish()
+
+    monkeypatch.setattr(assemble, "_blocks", blocks)
+    monkeypatch.setattr(store.TableWriter, "__init__", opening)
+    monkeypatch.setattr(V, "begin", begin)
+    monkeypatch.setattr(PL, "ASSEMBLY_BLOCK", 7)
+    res = run(tmp_path, jobs=2, serial_below=0.0)
+    assert events == ["begin", "block", "record", "open"] + ["block"] * (math.ceil(40 / 7) - 1)
+    assert res.verify is not None and store.read_metadata(res.out)["verify"] == res.verify
 
 
 # ------------------------------------------------------------------ Dask

@@ -8,8 +8,10 @@ plan, so the table is the same, bit for bit, whatever the jobs, backend or chunk
 """
 from __future__ import annotations
 
+import itertools
 from collections import OrderedDict
 from pathlib import Path
+from typing import Callable, Iterator
 
 import numpy as np
 
@@ -48,21 +50,36 @@ def _table_rows(scene: str, cols: dict, n_params: int) -> dict:
     return store.explode_streams(cols, n_params) if scene == "stream" else cols
 
 
-def assemble(plan: PL.Plan, work: Path, out: Path, meta: dict | None = None, tables: ChunkTables | None = None) -> int:
+def assemble(plan: PL.Plan, work: Path, out: Path, meta: dict | Callable[[], dict] | None = None,
+             tables: ChunkTables | None = None) -> int:
     """Write the table: rows in scene order, parameters from the planning pass, results from the
     chunks (`tables`: as the sweep read them, chunks.py); `meta` is added to its schema metadata
-    (e.g. {"verify": record}).
+    (e.g. {"verify": record}). `meta` may be a function that gives it: it is called once the first
+    block is made, before anything is written (a sweep's verification finishes then, its re-runs
+    on the workers while this process makes the block: sweep.py).
 
     Memory holds one block of rows and at most CHUNK_CACHE chunks. Returns the number of
     rows whose run raised (status 'failed: exception ...').
     """
+    blocks = _blocks(plan, work, tables_of(plan, work, tables))
+    first = next(blocks, None)
+    meta = meta() if callable(meta) else meta
+    schema = store.table_schema(plan.spec.scene, table_meta(plan) | (meta or {}))
+    failed = 0
+    with store.TableWriter(out, schema) as writer:
+        for cols, n_failed in itertools.chain(() if first is None else (first,), blocks):
+            failed += n_failed
+            writer.write(cols)
+    return failed
+
+
+def _blocks(plan: PL.Plan, work: Path, tables: ChunkTables) -> Iterator[tuple]:
+    """The table's blocks in order: ({column: Arrow array}, rows whose run raised)."""
     spec, size = plan.spec, plan.chunk_size
-    schema = store.table_schema(spec.scene, table_meta(plan) | (meta or {}))
+    fields = store.table_schema(spec.scene)
     rcols = [(f.name, f.type) for f in store.result_schema(spec.scene)]
     np_type = {"double": np.float64, "int64": np.int64, "bool": np.bool_}
     cache: OrderedDict = OrderedDict()
-    failed = 0
-    tables = tables_of(plan, work, tables)
 
     def chunk(c: int) -> dict:
         if c in cache:
@@ -74,28 +91,26 @@ def assemble(plan: PL.Plan, work: Path, out: Path, meta: dict | None = None, tab
             cache.popitem(last=False)
         return data
 
-    with store.TableWriter(out, schema) as writer:
-        for block, start in enumerate(range(0, plan.n_scenes, PL.ASSEMBLY_BLOCK)):
-            stop = min(plan.n_scenes, start + PL.ASSEMBLY_BLOCK)
-            rows = np.nonzero(plan.row_model[start:stop] >= 0)[0] + start
-            if len(rows) == 0:
-                continue
-            params = _block_params(plan, work, block, rows)
-            cols = {name: params.column(name) for name in params.column_names}
-            models = plan.row_model[rows]
-            which = models // size
-            for name, typ in rcols:
-                cols[name] = np.empty(len(rows), dtype=np_type.get(str(typ), object))
-            for c in np.unique(which):
-                sel = which == c
-                local = models[sel] - c * size
-                data = chunk(int(c))
-                if not np.array_equal(data["_model"][local], models[sel]):
-                    raise RuntimeError(f"chunk {c} in {work} does not hold the runs it should; "
-                                       f"rerun with --no-resume")
-                for name, _ in rcols:
-                    cols[name][sel] = data[name][local]
-            cols = _table_rows(spec.scene, cols, len(params.column_names))
-            failed += int(sum(1 for s in cols["status"] if str(s).startswith("failed: exception")))
-            writer.write(cols)
-    return failed
+    for block, start in enumerate(range(0, plan.n_scenes, PL.ASSEMBLY_BLOCK)):
+        stop = min(plan.n_scenes, start + PL.ASSEMBLY_BLOCK)
+        rows = np.nonzero(plan.row_model[start:stop] >= 0)[0] + start
+        if len(rows) == 0:
+            continue
+        params = _block_params(plan, work, block, rows)
+        cols = {name: params.column(name) for name in params.column_names}
+        models = plan.row_model[rows]
+        which = models // size
+        for name, typ in rcols:
+            cols[name] = np.empty(len(rows), dtype=np_type.get(str(typ), object))
+        for c in np.unique(which):
+            sel = which == c
+            local = models[sel] - c * size
+            data = chunk(int(c))
+            if not np.array_equal(data["_model"][local], models[sel]):
+                raise RuntimeError(f"chunk {c} in {work} does not hold the runs it should; "
+                                   f"rerun with --no-resume")
+            for name, _ in rcols:
+                cols[name][sel] = data[name][local]
+        cols = _table_rows(spec.scene, cols, len(params.column_names))
+        n_failed = int(sum(1 for s in cols["status"] if str(s).startswith("failed: exception")))
+        yield {f.name: store.arrow_array(cols[f.name], f.type) for f in fields}, n_failed

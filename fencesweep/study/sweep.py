@@ -25,6 +25,8 @@ run_sweep orchestrates the steps, each in its own module:
    meanwhile): they start at once and load nothing. Elsewhere they are loky processes.
 4. verify.py: a sample of the runs (the extremes first, then random) is run again at a 10x
    tighter tolerance and compared with the chunks' results, the table's values (verification).
+   The re-runs go to the local workers, if any, while this process makes the table's first
+   block (step 5), which is written once the record is made.
 5. assemble.py: the table is assembled block by block from the parameter blocks and the
    chunks (rows in scene order) into one Parquet file, atomically, the verification's record
    in its metadata; then the work directory is removed.
@@ -91,6 +93,7 @@ class _Run:
     timings: dict = field(default_factory=dict)
     per_run: float | None = None  # seconds per model run, when timed
     timed: dict = field(default_factory=dict)  # {model run: seconds} of the timed sample
+    record: dict | None = None  # the verification's record, once made
 
 
 def _quiet(msg: str) -> None:
@@ -136,27 +139,43 @@ def run_sweep(spec: S.Spec, out: str | Path | None = None, jobs: int | None = No
 
 def _run(run: _Run, plan: PL.Plan, root: Path, verify: bool | int | None, t0: float) -> Outcome:
     """Size the chunks, compute the missing ones, verify (on the same local workers, which stop
-    after it), assemble the table, remove the work directory."""
+    after the table is written) while the table's first block is made, assemble the table,
+    remove the work directory."""
     run.per_run = _size_chunks(run, plan)
     output.write_state(run.work, plan)
     done = output.chunks_done(plan, run.work)
     pending = sorted(set(range(plan.n_chunks)) - set(done))
     if done:
         run.log(f"resuming: {len(done)} of {plan.n_chunks} chunks already in {run.work}")
-    record = None
     tables = ChunkTables(plan, run.work)  # each chunk read once: as it finishes, or when first needed
     with contextlib.ExitStack() as workers:
         pool = _compute(run, plan, pending, done, workers, tables) if pending else None
-        if verify is not False:
-            record, run.timings["verify"] = V.run_verification(
-                plan, run.work, None if verify is None or verify is True else int(verify), run.jobs, run.local,
-                run.scheduler, run.simulate, run.serial_below, run.per_run, pool, tables)
-    t = time.perf_counter()
-    failed = assemble(plan, run.work, run.out, {"verify": record} if record is not None else None, tables)
-    run.timings["assemble"] = time.perf_counter() - t
+        meta = _verification(run, plan, verify, pool, tables) if verify is not False else None
+        t, verifying = time.perf_counter(), run.timings.get("verify", 0.0)
+        failed = assemble(plan, run.work, run.out, meta, tables)
+        run.timings["assemble"] = time.perf_counter() - t - (run.timings.get("verify", 0.0) - verifying)
     shutil.rmtree(root)
     return Outcome(run.out, plan.n_scenes - plan.skipped, plan.n_models, plan.n_chunks, len(pending), len(done),
-                   time.perf_counter() - t0, failed, run.jobs if run.local else None, run.timings, record)
+                   time.perf_counter() - t0, failed, run.jobs if run.local else None, run.timings, run.record)
+
+
+def _verification(run: _Run, plan: PL.Plan, verify: bool | int | None, pool, tables: ChunkTables) -> Callable:
+    """Begin the verification (verify.begin: its re-runs go to `pool`, the local workers, if any)
+    and return the function that finishes it, for the assembly to call once it has made the
+    table's first block: {"verify": record}, also kept as run.record. Its seconds go to
+    run.timings["verify"]."""
+    t = time.perf_counter()
+    finish = V.begin(plan, run.work, None if verify is None or verify is True else int(verify), run.jobs, run.local,
+                     run.scheduler, run.simulate, run.serial_below, run.per_run, pool, tables)
+    run.timings["verify"] = time.perf_counter() - t
+
+    def meta() -> dict:
+        t = time.perf_counter()
+        run.record = finish()
+        run.timings["verify"] += time.perf_counter() - t
+        return {"verify": run.record}
+
+    return meta
 
 
 def _plan(run: _Run, made: bool) -> PL.Plan:

@@ -58,30 +58,43 @@ def tolerance(vals: dict) -> float:
     return max(base * float(vals["step_factor"]) ** NU.TOL_EXPONENT, NU.TOL_MIN)
 
 
-def verify(plan: PL.Plan, work: Path, n: int | None = None, jobs: int = 1, local: bool = True,
-           scheduler: str | None = None, simulate: Callable | None = None, serial_below: float | None = None,
-           per_run: float | None = None, pool=None, tables: ChunkTables | None = None) -> dict:
-    """Verify a plan whose chunks are all in `work`: choose the sample, re-run it (on `pool`, the
-    sweep's workers still running, while this process reads the table's values; else on `jobs`
-    local processes, in this one when the work is small, or on Dask) and compare; the record.
-    `tables`: the chunks as the sweep read them (chunks.py)."""
+def begin(plan: PL.Plan, work: Path, n: int | None = None, jobs: int = 1, local: bool = True,
+          scheduler: str | None = None, simulate: Callable | None = None, serial_below: float | None = None,
+          per_run: float | None = None, pool=None, tables: ChunkTables | None = None) -> Callable[[], dict]:
+    """Start verifying a plan whose chunks are all in `work` (`tables`: as the sweep read them,
+    chunks.py): choose the sample and, given `pool` (the sweep's workers, still running), submit
+    its re-runs to it. Returns the function that finishes: it re-runs the sample unless the
+    pool does (on `jobs` local processes, in this one when the work is small, or on Dask), reads
+    the table's values, compares, and gives the record. Meanwhile the caller may work: a sweep
+    makes its table's first block while the workers re-run (sweep.py)."""
     tables = tables_of(plan, work, tables)
     sample = VS.choose(plan, work, n, tables)
     spec = plan.spec
     rows = [int(plan.first_row[m]) for m in sample.models]
     if pool is not None:
         rerun_results = compute.submit_reruns(pool, rows, STEP_FACTOR_SCALE, jobs)
-        table = _table_values(plan, tables, sample.models)
-        reruns = rerun_results()
     else:
-        if local and jobs > 1:
-            jobs = runs.local_jobs(jobs, (per_run or 1e-3) * VS.RERUN_COST * len(rows), serial_below)
-        reruns = compute.rerun_scenes(spec, rows, STEP_FACTOR_SCALE, jobs, local, scheduler, simulate)
+        def rerun_results() -> dict:
+            use = runs.local_jobs(jobs, (per_run or 1e-3) * VS.RERUN_COST * len(rows), serial_below) \
+                if local and jobs > 1 else jobs
+            return compute.rerun_scenes(spec, rows, STEP_FACTOR_SCALE, use, local, scheduler, simulate)
+
+    def finish() -> dict:
         table = _table_values(plan, tables, sample.models)
-    vals = [spec.resolve(i) for i in rows]
-    found = [_compare(spec.scene, table[m], reruns[i], _freefall(v, table[m]))
-             for m, i, v in zip(sample.models, rows, vals)]
-    return _record(plan, sample, rows, vals, found)
+        vals = [spec.resolve(i) for i in rows]
+        reruns = rerun_results()
+        found = [_compare(spec.scene, table[m], reruns[i], _freefall(v, table[m]))
+                 for m, i, v in zip(sample.models, rows, vals)]
+        return _record(plan, sample, rows, vals, found)
+
+    return finish
+
+
+def verify(plan: PL.Plan, work: Path, n: int | None = None, jobs: int = 1, local: bool = True,
+           scheduler: str | None = None, simulate: Callable | None = None, serial_below: float | None = None,
+           per_run: float | None = None, pool=None, tables: ChunkTables | None = None) -> dict:
+    """Verify a plan whose chunks are all in `work`: begin(...) and finish at once; the record."""
+    return begin(plan, work, n, jobs, local, scheduler, simulate, serial_below, per_run, pool, tables)()
 
 
 def _table_values(plan: PL.Plan, tables: ChunkTables, models: list) -> dict:
