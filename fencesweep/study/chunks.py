@@ -6,7 +6,8 @@ from memory. Measured on the main job with 2 jobs (16 chunks): the three reads a
 last chunk took ~0.06 s of the ~0.2 s between it and the table.
 
 The tables held take at most HOLD_BYTES; a chunk past it is read from its file each time
-(as each step did before), so a sweep of any size holds what it did.
+(as each step did before, the sample's scores only the columns they need), so a sweep of any
+size holds what it did.
 """
 from __future__ import annotations
 
@@ -31,22 +32,28 @@ class ChunkTables:
         self.hold = HOLD_BYTES if hold is None else hold
         self._tables: dict = {}
         self._bytes = 0
+        self._room = True  # until a chunk did not fit
         self.reads = 0  # files read (a test counts them)
 
-    def read(self, c: int) -> pa.Table:
-        """Chunk `c`'s table: held, or read from its file (and held while it fits)."""
+    def read(self, c: int, columns: list | None = None) -> pa.Table:
+        """Chunk `c`'s table (its `columns`, or all): held, or read from its file and held while
+        there is room; once a chunk did not fit, only `columns` are read, and not held."""
         table = self._tables.get(c)
         if table is None:
-            table = pq.ParquetFile(self.work / self.plan.chunk_name(c)).read()
+            table = pq.ParquetFile(self.work / self.plan.chunk_name(c)).read(columns=None if self._room else columns)
             self.reads += 1
-            if self._bytes + table.nbytes <= self.hold:
+            if self._room and self._bytes + table.nbytes <= self.hold:
                 self._tables[c] = table
                 self._bytes += table.nbytes
-        return table
+            else:
+                self._room = False
+        return table if columns is None else table.select(columns)
 
     def finished(self, c: int) -> None:
-        """Chunk `c` has just been written: read it now (the sweep's workers run the others)."""
-        self.read(c)
+        """Chunk `c` has just been written: read it now, while the sweep's workers run the others,
+        if there is room to hold it."""
+        if self._room:
+            self.read(c)
 
 
 def tables_of(plan: PL.Plan, work: Path, tables: ChunkTables | None) -> ChunkTables:

@@ -126,7 +126,7 @@ def scores(plan: PL.Plan, work, tables: ChunkTables | None = None) -> tuple:
     dalpha = dalpha_perm(plan, work) if kind(scene) == "cycle" else None
     tables = tables_of(plan, work, tables)
     for c in range(plan.n_chunks):
-        table = tables.read(c).select(names + ["_model"])
+        table = tables.read(c, names + ["_model"])
         cols, owner = _cycles(table, names)
         model = store.numpy_column(table.column("_model"))[owner]
         per = _cycle_scores(cols, dalpha[model]) if dalpha is not None else _impact_scores(cols)
