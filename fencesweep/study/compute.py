@@ -293,8 +293,8 @@ def rerun_scenes(spec: S.Spec, rows: list, step_factor_scale: float, jobs: int, 
 
 def submit_reruns(pool, rows: list, step_factor_scale: float, jobs: int) -> Callable[[], dict]:
     """rerun_scenes on the sweep's running workers (start_pool): submitted now, so that they run
-    while this process reads the table's values; returns the function that waits for them and
-    gives {row: results}."""
+    while this process makes the table's first block and reads the table's values (verify.begin);
+    returns the function that waits for them and gives {row: results}."""
     futures = [pool.submit(_rerun, group, step_factor_scale, None) for group in _rerun_groups(rows, jobs, True)]
 
     def results() -> dict:

@@ -92,9 +92,10 @@ def begin(plan: PL.Plan, work: Path, n: int | None = None, jobs: int = 1, local:
 
 def verify(plan: PL.Plan, work: Path, n: int | None = None, jobs: int = 1, local: bool = True,
            scheduler: str | None = None, simulate: Callable | None = None, serial_below: float | None = None,
-           per_run: float | None = None, pool=None, tables: ChunkTables | None = None) -> dict:
-    """Verify a plan whose chunks are all in `work`: begin(...) and finish at once; the record."""
-    return begin(plan, work, n, jobs, local, scheduler, simulate, serial_below, per_run, pool, tables)()
+           per_run: float | None = None, tables: ChunkTables | None = None) -> dict:
+    """Verify a plan whose chunks are all in `work`: begin(...) without a pool, and finish at
+    once; the record."""
+    return begin(plan, work, n, jobs, local, scheduler, simulate, serial_below, per_run, None, tables)()
 
 
 def _table_values(plan: PL.Plan, tables: ChunkTables, models: list) -> dict:
@@ -260,10 +261,10 @@ def _record(plan: PL.Plan, sample: VS.Sample, rows: list, vals: list, found: lis
 
 def run_verification(plan: PL.Plan, work: Path, n: int | None, jobs: int, local: bool, scheduler: str | None,
                      simulate: Callable | None, serial_below: float | None, per_run: float | None,
-                     pool=None, tables: ChunkTables | None = None) -> tuple:
+                     tables: ChunkTables | None = None) -> tuple:
     """verify(...) and the seconds it took."""
     t = time.perf_counter()
-    record = verify(plan, work, n, jobs, local, scheduler, simulate, serial_below, per_run, pool, tables)
+    record = verify(plan, work, n, jobs, local, scheduler, simulate, serial_below, per_run, tables)
     return record, time.perf_counter() - t
 
 
