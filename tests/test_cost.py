@@ -15,12 +15,14 @@ import fencesweep
 #: the last bits of libm's trigonometry differ between platforms and can move a step or two.
 COST_MARGIN = 1.10
 
-#: (scene, parameters) -> steps + rejected steps, measured 2026-11-23 at the default tolerance.
+#: (scene, parameters) -> steps + rejected steps, measured 2026-11-28 at the default tolerance.
+#: small_far rigid went from 39 to 48 then: a release under numerics.LIGHT_FORCE is stepped at
+#: the tighter tolerance of a light contact (its contact_time was 1e-3 off in whole tables).
 MEASURED = {
-    ("cycle", "small_far", "flexible"): 199,
-    ("cycle", "small_far", "rigid"): 41,
-    ("cycle", "long_near", "flexible"): 478,
-    ("cycle", "long_near", "rigid"): 359,
+    ("cycle", "small_far", "flexible"): 212,
+    ("cycle", "small_far", "rigid"): 48,
+    ("cycle", "long_near", "flexible"): 459,
+    ("cycle", "long_near", "rigid"): 322,
 }
 
 

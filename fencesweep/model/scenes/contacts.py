@@ -51,7 +51,7 @@ def damping_power(n, n_el, Dd):
 @kernel(inline=True)
 def friction_power(f, w):
     """The heat of one contact's friction, -f w [W], f its friction force, w its slip
-    (docs/model.md (11.11), E_friction; summed by add_contact, integrated as the state's 12)."""
+    (docs/model.md (11.12), E_friction; summed by add_contact, integrated as the state's 12)."""
     return -f * w
 
 

@@ -31,9 +31,10 @@ from fencesweep.model import layout as Lp
 from fencesweep.model import results as Rs
 from fencesweep.model.scenes.contacts import N_SLOTS
 from fencesweep.model.scenes.cycle.books import (apply_contact_change, drop_load, finish, record, start,
-                                                 swing_amplitude, time_out)
+                                                 swing_amplitude, sync_touch, time_out)
 from fencesweep.model.scenes.cycle.layout import (A_EXITED, A_QMAX, A_STATUS, A_T_EXIT, IW_EDGE, IW_MODE, IW_RIDE,
-                                                  N_ACC, N_AUX, N_IW, N_Q, N_QV, N_STATE, N_TRAJ, QV_0, Work)
+                                                  N_ACC, N_AUX, N_IW, N_Q, N_QV, N_STATE, N_TRAJ, Q_NF, QV_0,
+                                                  Work)
 from fencesweep.model.scenes.cycle.peaks import quantities_from_aux
 from fencesweep.model.scenes.cycle.rhs import deflection, fence_state, rhs, step
 from fencesweep.model.scenes.cycle.run import run, set_tolerance
@@ -61,6 +62,7 @@ def begin_cycle(p, w):
     w.iw[IW_RIDE] = 0 if in_contact(w.iw) else 1
     rhs(0.0, w.y, p, w.iw, w.K[0], w.aux)
     quantities_from_aux(0.0, w.y, p, w.iw, w.aux, w.qv[QV_0])
+    sync_touch(0.0, w.qv[QV_0, Q_NF], p, w.acc)
     for k in range(N_Q):
         w.acc[A_QMAX + k] = w.qv[QV_0, k]
     for i in range(N_Q + 1):

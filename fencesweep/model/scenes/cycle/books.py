@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 from fencesweep.kernel import driver
+from fencesweep.kernel import numerics as NU
 from fencesweep.kernel.jit import kernel
 from fencesweep.model import layout as Lp
 from fencesweep.model import results as Rs
@@ -12,7 +13,8 @@ from fencesweep.model.drive import drive_angle
 from fencesweep.model.scenes.contacts import APART, N_SLOTS
 from fencesweep.model.scenes.cycle.layout import (A_DMAX, A_E_CONTACT, A_E_DAMPER, A_EXITED, A_N_IMPACTS,
                                                   A_OUTCOME, A_PHI_EXIT, A_QMAX, A_RESID, A_RESID_AMP, A_STAGE,
-                                                  A_STATUS, A_T_EXIT, A_T_FIRST, A_T_LOSS, A_X_EXIT, AX_NF, AX_NR,
+                                                  A_ONSET, A_STATUS, A_T_EXIT, A_T_FIRST, A_T_LOSS, A_TOUCH, A_X_EXIT,
+                                                  AX_NF, AX_NR,
                                                   AX_TAU, FM_FREE, FM_KELVIN, FM_KINEMATIC, IW_CODE, IW_EDGE,
                                                   IW_LOAD, IW_MODE, IW_RIDE, N_ACC, N_CTRL, N_STATE, Q_ALPHA,
                                                   Q_DEFL, Q_NF, Q_NR)
@@ -54,24 +56,50 @@ def release_free_fence(t, y, p, iw):
         y[7] = daw
 
 
+@kernel(inline=True)
+def touching(nf, p):
+    """Does the load touch the fence: its load-fence force sum nf [N] (the fence's, (11.1))
+    above numerics.TOUCH_FORCE x F_ff (docs/model.md (11.10))?"""
+    return nf > NU.TOUCH_FORCE * p[Lp.FFORCE]
+
+
+@kernel()
+def note_touch(t, touch, acc):
+    """The fence force passes the touch floor at t (docs/model.md (11.10)), upwards (touch) or
+    downwards. Upwards: an impact (11.9); the first dates t_A (11.8) from where the fence's force
+    first left 0 (acc[A_ONSET]). Downwards: the last loss, t_B."""
+    if touch:
+        acc[A_N_IMPACTS] += 1.0
+        if math.isnan(acc[A_T_FIRST]):
+            acc[A_T_FIRST] = acc[A_ONSET]
+    else:
+        acc[A_T_LOSS] = t
+    acc[A_TOUCH] = 1.0 if touch else 0.0
+
+
+@kernel(inline=True)
+def sync_touch(t, nf, p, acc):
+    """The touch at t from the fence force nf there: noted (note_touch) where it changed."""
+    now = touching(nf, p)
+    if now != (acc[A_TOUCH] != 0.0):
+        note_touch(t, now, acc)
+
+
 @kernel()
 def apply_contact_change(t, y, p, iw, codes, edge, acc):
-    """Enter the slots' new codes at an event; count the onsets of load-fence contact, n_impacts
-    (docs/model.md (11.9)), and note t_A and the last loss (11.8); release the free fence at the
-    first contact (3.4)."""
+    """Enter the slots' new codes at an event; note where the fence's force first leaves 0 (t_A
+    once a touch follows, docs/model.md (11.10)); release the free fence at the first load-fence
+    contact that carries force (3.4). The touches (n_impacts, t_B) are counted on the force
+    (note_touch)."""
     before = fence_pushed(iw)
     for k in range(N_SLOTS):
         iw[IW_CODE + k] = codes[k]
     iw[IW_EDGE] = edge
     iw[IW_RIDE] = 0
-    after = fence_pushed(iw)
-    if after and not before:
-        acc[A_N_IMPACTS] += 1.0
-        if math.isnan(acc[A_T_FIRST]):
-            acc[A_T_FIRST] = t
+    if fence_pushed(iw) and not before:
+        if math.isnan(acc[A_ONSET]):
+            acc[A_ONSET] = t  # t_A, once the force passes the touch floor (note_touch)
         release_free_fence(t, y, p, iw)
-    if before and not after:
-        acc[A_T_LOSS] = t
 
 
 @kernel()
@@ -82,8 +110,8 @@ def drop_load(t, y, iw, acc, outcome):
     acc[A_X_EXIT] = y[0]
     acc[A_PHI_EXIT] = y[2]
     acc[A_E_CONTACT] = y[9]
-    if fence_pushed(iw):
-        acc[A_T_LOSS] = t  # still touching at exit: B = t_exit
+    if acc[A_TOUCH] != 0.0:
+        note_touch(t, False, acc)  # still touching at exit: B = t_exit
     acc[A_EXITED] = 1.0
     iw[IW_LOAD] = 0
     iw[IW_RIDE] = 0
@@ -196,7 +224,7 @@ def start(p, w):
     iw[IW_RIDE] = 1  # at t = 0 the load moves with the belt (docs/model.md §1)
     for i in range(N_ACC):
         acc[i] = 0.0
-    for i in (A_T_FIRST, A_T_LOSS, A_T_EXIT, A_X_EXIT, A_PHI_EXIT, A_E_CONTACT, A_RESID, A_RESID_AMP,
+    for i in (A_T_FIRST, A_T_LOSS, A_ONSET, A_T_EXIT, A_X_EXIT, A_PHI_EXIT, A_E_CONTACT, A_RESID, A_RESID_AMP,
               A_E_DAMPER):
         acc[i] = math.nan
     acc[A_OUTCOME] = Rs.TIMEOUT

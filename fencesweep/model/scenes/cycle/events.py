@@ -53,6 +53,17 @@ def outcome_hit(kind, y, p):
 
 
 @kernel()
+def gap_crossed(ctx, theta):
+    """Predicate for search.bisect: has the gap of one slot changed sign from its sign at the
+    step's start (g0 > 0 or not) by theta?"""
+    t0, h, y0, Q, p, iw, tmp, k, closed0 = ctx
+    rk.dense_eval(y0, Q, theta, tmp, N_CTRL)
+    ca, sa, dal, cphi, sphi = frame_at(t0 + theta * h, tmp, p, iw)
+    c, e, g, r = slot_eval(k, tmp, p, iw, ca, sa, dal, cphi, sphi)
+    return (g <= 0.0) != closed0
+
+
+@kernel()
 def outcome_reached(ctx, theta):
     """Predicate for search.bisect: has outcome `kind` happened at theta?"""
     y0, Q, p, tmp, kind = ctx
@@ -63,6 +74,7 @@ def outcome_reached(ctx, theta):
 #: the searches on the dense output (kernel/search.py), bound to the predicates and the gap above
 find_change = bisector(mask_changed, "cycle_find_change")
 find_outcome = bisector(outcome_reached, "cycle_find_outcome")
+find_crossing = bisector(gap_crossed, "cycle_find_crossing")
 min_gap = peak_finder(neg_gap, "cycle_min_gap")
 
 
@@ -72,6 +84,28 @@ def graze_candidate(k, iw, codes1, g0, r0, g1, r1):
     ends, with a gap that closes at the start and opens at the end (graze_theta)."""
     return (iw[IW_CODE + k] == APART and codes1[k] == APART and g0[k] > 0.0 and g1[k] > 0.0
             and r0[k] < 0.0 and r1[k] > 0.0)
+
+
+@kernel(inline=True)
+def crossing_candidate(k, iw, codes1, g0, g1):
+    """Can slot k have touched inside the step while its gap changed sign? Apart at both ends
+    (out of its span at one of them: docs/model.md §15, Events), its gap of one sign at the start and
+    of the other at the end: a rail corner that dips below y = 0 at x < 0 and passes the pivot
+    (x > 0) within one step, a fence corner that meets the fence and slides past its tip."""
+    return iw[IW_CODE + k] == APART and codes1[k] == APART and (g0[k] > 0.0) != (g1[k] > 0.0)
+
+
+@kernel()
+def crossing_theta(p, w, t, h, k, tol):
+    """theta inside the step at which slot k (crossing_candidate) touches, or 2: its gap's sign
+    change located on the dense output (search.bisect), and the slot's code read on the side of
+    it where the gap is closed."""
+    closed0 = not (w.g0[k] > 0.0)
+    lo, hi = find_crossing((t, h, w.y, w.Q, p, w.iw, w.tmp, k, closed0), 0.0, 1.0, tol)
+    th = lo if closed0 else hi
+    if mask_changed((t, h, w.y, w.Q, p, w.iw, w.tmp, 1 << k), th):
+        return th
+    return 2.0
 
 
 @kernel(inline=True)
@@ -104,24 +138,42 @@ def graze_theta(p, w, t, h):
 
 
 @kernel(inline=True)
+def touched_between(p, w, t, h, hi, mask, grazing, tol):
+    """Slots apart at both ends of the step that touch in between (graze_theta, crossing_theta),
+    on its dense output: the earliest such touch before hi becomes the end of the bracket that
+    find_event bisects, its slot added to the mask. Returns (hi, mask)."""
+    ensure_dense(p, w, h)
+    if grazing:
+        th_g, slot = graze_theta(p, w, t, h)
+        if slot >= 0 and th_g < hi:
+            hi = th_g
+            mask |= 1 << slot
+    for k in range(N_SLOTS):
+        if crossing_candidate(k, w.iw, w.codes1, w.g0, w.g1):
+            th_c = crossing_theta(p, w, t, h, k, tol)
+            if th_c < hi:
+                hi = th_c
+                mask |= 1 << k
+    return hi, mask
+
+
+@kernel(inline=True)
 def find_event(p, w, t, h, exited):
     """First event inside the step [t, t + h] on its dense output: (theta just past it, kind)
     with kind 0 none (theta = 1), 1 a contact change or graze, 2 scraped, 3 escaped. The ends
     of the step tell which events can lie inside it; only then is its dense output formed."""
     mask = 0
     grazing = False
+    crossing = False
     for k in range(N_SLOTS):
         if slot_changed(k, w.codes1[k], w.tags1[k], w.iw):
             mask |= 1 << k
         grazing |= graze_candidate(k, w.iw, w.codes1, w.g0, w.r0, w.g1, w.r1)
+        crossing |= crossing_candidate(k, w.iw, w.codes1, w.g0, w.g1)
     hi = 1.0 if mask != 0 else 2.0
-    if grazing:
-        ensure_dense(p, w, h)
-        th_g, slot = graze_theta(p, w, t, h)
-        if slot >= 0 and th_g < hi:
-            hi = th_g
-            mask |= 1 << slot
     tol = NU.EVENT_TOL * max(1.0, t) / h
+    if grazing or crossing:
+        hi, mask = touched_between(p, w, t, h, hi, mask, grazing, tol)
     theta = 1.0
     kind = 0
     if mask != 0:

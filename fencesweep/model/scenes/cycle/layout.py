@@ -40,8 +40,8 @@ AX_CA, AX_SA, AX_DAL, AX_CPHI, AX_SPHI, AX_FRAME, N_AUX = 9, 10, 11, 12, 13, 14,
 # tracked maxima (docs/model.md §11)
 Q_NF, Q_NR, Q_DEFL, Q_ALPHA, N_Q = 0, 1, 2, 3, 4
 # rows of Work.qv: the quantities at the step's start and end, two samples inside it, a scratch
-# row, and where the step's maxima lie (peaks.track_maxima)
-QV_0, QV_1, QV_A, QV_B, QV_S, QV_THETA, N_QV = 0, 1, 2, 3, 4, 5, 6
+# row, where the step's maxima lie and the quantities' rates over the last step (peaks.track_maxima)
+QV_0, QV_1, QV_A, QV_B, QV_S, QV_THETA, QV_RATE, N_QV = 0, 1, 2, 3, 4, 5, 6, 7
 # trajectory columns
 TRAJ_COLUMNS = ("t", "x", "y", "phi", "vx", "vy", "omega", "alpha", "alpha_w", "alpha_dot",
                 "N_fence", "N_rail", "M_fence", "stage",
@@ -50,9 +50,11 @@ TRAJ_UNITS = ("s", "m", "m", "rad", "m/s", "m/s", "rad/s", "rad", "rad", "rad/s"
               "J", "J", "J", "J", "J")
 N_TRAJ = len(TRAJ_COLUMNS)
 # run accumulators (float vector `acc`); the step counts are the driver's (Work.count)
+# (A_TOUCH: 1 while the load touches the fence, books.touching; A_ONSET: the instant the fence's
+# force first left 0 in the run)
 (A_T_FIRST, A_T_LOSS, A_N_IMPACTS, A_DMAX, A_OUTCOME, A_STATUS, A_T_EXIT, A_X_EXIT, A_PHI_EXIT,
- A_E_CONTACT, A_RESID, A_RESID_AMP, A_E_DAMPER, A_EXITED, A_QMAX, A_STAGE, N_ACC) = (
-    0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 14 + N_Q, 14 + N_Q + 5)
+ A_E_CONTACT, A_RESID, A_RESID_AMP, A_E_DAMPER, A_EXITED, A_QMAX, A_STAGE, A_TOUCH, A_ONSET, N_ACC) = (
+    0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 14 + N_Q, 14 + N_Q + 5, 14 + N_Q + 6, 14 + N_Q + 7)
 
 #: a run's work arrays (allocated by stream.run_cycles)
 Work = namedtuple("Work", (

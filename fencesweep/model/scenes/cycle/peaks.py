@@ -9,13 +9,13 @@ import math
 from fencesweep.kernel import numerics as NU
 from fencesweep.kernel import rk
 from fencesweep.kernel.jit import kernel
-from fencesweep.kernel.search import peak_finder
+from fencesweep.kernel.search import bisector, peak_finder
 from fencesweep.model import layout as Lp
-from fencesweep.model.scenes.cycle.books import record
+from fencesweep.model.scenes.cycle.books import note_touch, record, touching
 from fencesweep.model.scenes.cycle.events import ensure_dense
-from fencesweep.model.scenes.cycle.layout import (A_QMAX, AX_NF, AX_NR, IW_LOAD, IW_MODE, IW_RIDE, N_CTRL, N_Q,
+from fencesweep.model.scenes.cycle.layout import (A_QMAX, A_TOUCH, AX_NF, AX_NR, IW_LOAD, IW_MODE, IW_RIDE, N_CTRL, N_Q,
                                                   N_STATE, Q_ALPHA, Q_DEFL, Q_NF, Q_NR, QV_0, QV_1, QV_A, QV_B,
-                                                  QV_S, QV_THETA)
+                                                  QV_RATE, QV_S, QV_THETA)
 from fencesweep.model.scenes.cycle.rhs import deflection, fence_state, rhs, step
 
 UNJUDGED = -1.0  # rising[k] when the step before did not judge quantity k at its end
@@ -66,13 +66,23 @@ peak_of = peak_finder(quantity_at, "cycle_peak_of")
 
 
 @kernel(inline=True)
-def near_maximum(q0, q1, acc, k):
-    """Can this step hold a new maximum of tracked quantity k? Only if one of its end samples
-    is within numerics.PEAK_CANDIDATE of the running maximum (the samples around an interior
-    peak are, at steps that resolve it), and that maximum is not 0 (a force before any contact:
-    a contact's onset is an event, after which the step is judged anew)."""
+def near_maximum(q0, q1, rate, span, acc, k):
+    """Can this step [t, t + span] hold a new maximum of force k? Only if the force can come within
+    numerics.PEAK_CANDIDATE of the running maximum inside it (reach), and that maximum is not 0
+    (a force before any contact: a contact's onset is an event, after which the step is judged
+    anew)."""
     m = max(acc[A_QMAX + k], q0[k], q1[k])
-    return max(q0[k], q1[k]) >= NU.PEAK_CANDIDATE * m and m > 0.0
+    return reach(q0[k], q1[k], rate[k], span) >= NU.PEAK_CANDIDATE * m and m > 0.0
+
+
+@kernel(inline=True)
+def reach(q0, q1, rate, span):
+    """How high a force may climb inside a step of length span from its end values q0, q1 and
+    its rate over the step before (numerics.PEAK_REACH): the larger end value plus PEAK_REACH
+    times the larger of the change over the step and the change at the rate before. A concave
+    force lies below its tangent at the start, whose slope the previous secant exceeds; the
+    factor covers a force still convex at the start (a pulse's rise)."""
+    return max(q0, q1) + NU.PEAK_REACH * max(abs(q1 - q0), abs(rate) * span)
 
 
 @kernel(inline=True)
@@ -177,9 +187,11 @@ def track_maxima(p, w, t, h, theta_end):
     w.qv[QV_THETA][k]: the fraction of the step at which quantity k's interior maximum was
     located, -1 where none was."""
     q0, q1, qb, ths, acc, rising = w.qv[QV_0], w.qv[QV_1], w.qv[QV_B], w.qv[QV_THETA], w.acc, w.rising
+    rate = w.qv[QV_RATE]
+    span = theta_end * h
     for k in range(N_Q):
         ths[k] = -1.0
-    forces = near_maximum(q0, q1, acc, Q_NF) or near_maximum(q0, q1, acc, Q_NR)
+    forces = near_maximum(q0, q1, rate, span, acc, Q_NF) or near_maximum(q0, q1, rate, span, acc, Q_NR)
     if rising[N_Q] != 0.0:
         for k in range(Q_DEFL):
             rising[k] = UNJUDGED
@@ -193,7 +205,7 @@ def track_maxima(p, w, t, h, theta_end):
             rising[k] = UNJUDGED
             continue
         if k < Q_DEFL:
-            inside = rising[k] == 1.0 and qb[k] > q1[k] and max(q1[k], q0[k]) >= NU.PEAK_CANDIDATE * m
+            inside = rising[k] == 1.0 and qb[k] > q1[k] and reach(q0[k], q1[k], rate[k], span) >= NU.PEAK_CANDIDATE * m
             rising[k] = 1.0 if q1[k] > qb[k] else 0.0
         else:
             inside = qb[k] >= NU.PEAK_CANDIDATE * m
@@ -204,6 +216,8 @@ def track_maxima(p, w, t, h, theta_end):
             m = max(m, peak_value(p, w, t, h, th, k))
             ths[k] = th
         acc[A_QMAX + k] = m
+    for k in range(Q_DEFL):
+        rate[k] = (q1[k] - q0[k]) / span if span > 0.0 else 0.0
     rising[N_Q] = 0.0
 
 
@@ -225,3 +239,38 @@ def record_peaks(p, w, t, h, theta_end):
         rhs(t + th * h, w.ys, p, w.iw, w.dy, w.auxs)
         w.row[0] = record(w.traj, w.row[0], t + th * h, w.ys, p, w.iw, w.auxs)
         prev = th
+
+
+@kernel()
+def touch_changed(ctx, theta):
+    """Predicate for search.bisect: does the touch (books.touching) at theta differ from `was`,
+    the touch at the step's start?"""
+    t0, h, y0, Q, p, iw, tmp, aux, dy, q, was = ctx
+    rk.dense_eval(y0, Q, theta, tmp, N_CTRL)
+    quantities(t0 + theta * h, tmp, p, iw, aux, dy, q, True)
+    return touching(q[Q_NF], p) != was
+
+
+#: the bisection of a touch's change on the dense output (kernel/search.py)
+find_touch = bisector(touch_changed, "cycle_find_touch")
+
+
+@kernel()
+def touch_in_step(p, w, t, h, theta_end, release):
+    """The fence force passing the touch floor inside the step [t, t + theta_end h] (docs/model.md
+    (11.10): its value at the step's end, w.qv[QV_1], on the other side of the floor than the
+    touch at its start), noted by books.note_touch: upwards at once (t_A is dated from the force's
+    first onset, an event); downwards at the step's end when the step ends at a `release` (the
+    force falls from the floor to 0 within a rounding of it, and the step's dense output is
+    least accurate just there: events.release_state), else where it is located on the dense
+    output by bisection (events are located inside the step, §9)."""
+    was = w.acc[A_TOUCH] != 0.0
+    if touching(w.qv[QV_1, Q_NF], p) == was:
+        return
+    if not was or release:
+        note_touch(t + theta_end * h, not was, w.acc)
+        return
+    ensure_dense(p, w, h)
+    tol = NU.EVENT_TOL * max(1.0, t) / h
+    th = find_touch((t, h, w.y, w.Q, p, w.iw, w.tmp, w.auxs, w.dy, w.qv[QV_S], was), 0.0, theta_end, tol)[1]
+    note_touch(t + th * h, not was, w.acc)

@@ -132,7 +132,7 @@ def load_rhs(y, p, iw, ca, sa, dal, dy, aux):
 
 @kernel(inline=True)
 def belt_power(bx, by, bt, vx, vy, om):
-    """The power of the belt on the load, F_b . X' + M_b omega [W] (docs/model.md (11.11), W_belt;
+    """The power of the belt on the load, F_b . X' + M_b omega [W] (docs/model.md (11.12), W_belt;
     integrated as the state's component 11; E_friction's power is contacts.friction_power)."""
     return bx * vx + by * vy + bt * om
 
@@ -161,7 +161,7 @@ def damper_power(b2, daw, dal):
 @kernel(inline=True)
 def drive_power(torque, daw):
     """The power of the drive lever, its torque on the fence times alpha_w' [W] (docs/model.md
-    (11.10); integrated as the state's component 10, W_drive): the element's torque, 0 for the
+    (11.11); integrated as the state's component 10, W_drive): the element's torque, 0 for the
     free fence, -tau for the rigid drive (the lever then takes the load's moment itself)."""
     return torque * daw
 

@@ -22,13 +22,14 @@ from fencesweep.model import layout as Lp
 from fencesweep.model import results as Rs
 from fencesweep.model.contact import pulse_time
 from fencesweep.model.scenes.contacts import APART, N_SLOTS, RAIL0, TIP
-from fencesweep.model.scenes.cycle.books import after_step, at_t_c, count_stage_time, record, time_out
+from fencesweep.model.scenes.cycle.books import after_step, at_t_c, count_stage_time, record, sync_touch, time_out
 from fencesweep.model.scenes.cycle.events import event_state, find_event
-from fencesweep.model.scenes.cycle.layout import (IW_CODE, IW_LOAD, A_DMAX, A_EXITED, A_QMAX, A_STATUS, AX_DMAX, N_Q, N_STATE, QV_0,
-                                                  QV_1)
-from fencesweep.model.scenes.cycle.peaks import quantities, quantities_from_aux, record_peaks, track_maxima
+from fencesweep.model.scenes.cycle.layout import (IW_CODE, IW_LOAD, A_DMAX, A_EXITED, A_QMAX, A_STATUS, AX_DMAX, N_Q, N_STATE, Q_NF,
+                                                  QV_0, QV_1)
+from fencesweep.model.scenes.cycle.peaks import (quantities, quantities_from_aux, record_peaks, touch_in_step,
+                                                 track_maxima)
 from fencesweep.model.scenes.cycle.rhs import rhs, step
-from fencesweep.model.scenes.cycle.slots import classify, classify_after_rhs, in_contact, new_push
+from fencesweep.model.scenes.cycle.slots import classify, classify_after_rhs, in_contact, new_push, releases
 
 
 @kernel(inline=True)
@@ -47,17 +48,18 @@ def onset_step(p, w, h_next):
 
 
 @kernel(inline=True)
-def light_fence_contact(w):
-    """Is the load letting go of the fence slowly: its deepest fence contact less than
-    numerics.LIGHT_DEPTH position tolerances (TOL l) deep and opening at the step's start
-    (docs/model.md (15.14))?"""
+def light_fence_contact(p, w):
+    """Is the load letting go of the fence slowly: its deepest fence contact opening at the step's
+    start, and less than numerics.LIGHT_DEPTH position tolerances (TOL l) deep or the fence's force
+    below numerics.LIGHT_FORCE x F_ff (docs/model.md (15.14))?"""
     deepest = -1.0
     opening = True
     for k in range(N_SLOTS):
         if (k < RAIL0 or k == TIP) and w.iw[IW_CODE + k] != APART and -w.g0[k] > deepest:
             deepest = -w.g0[k]
             opening = w.r0[k] >= 0.0
-    return opening and deepest >= 0.0 and deepest < NU.LIGHT_DEPTH * w.atol0[0]
+    light = deepest < NU.LIGHT_DEPTH * w.atol0[0] or w.qv[QV_0, Q_NF] < NU.LIGHT_FORCE * p[Lp.FFORCE]
+    return opening and deepest >= 0.0 and light
 
 
 @kernel(inline=True)
@@ -65,7 +67,7 @@ def set_tolerance(p, w):
     """The tolerances of the next step (docs/model.md (15.14); numerics.APPROACH_TOL, FREE_TOL
     say why): the run's, times APPROACH_TOL while the load is on the belt and touches nothing
     or lets go of the fence slowly, times FREE_TOL for a free fence."""
-    s = NU.APPROACH_TOL if w.iw[IW_LOAD] != 0 and (not in_contact(w.iw) or light_fence_contact(w)) else 1.0
+    s = NU.APPROACH_TOL if w.iw[IW_LOAD] != 0 and (not in_contact(w.iw) or light_fence_contact(p, w)) else 1.0
     if int(p[Lp.DRIVE]) == Lp.DRIVE_FREE:
         s = min(s, NU.FREE_TOL)
     for i in range(N_STATE):
@@ -131,9 +133,11 @@ def accept(p, w, t, h, t1, err, h_next):
     track_maxima(p, w, t, h, theta)
     if w.traj.shape[0] > 0:
         record_peaks(p, w, t, h, theta)
+    touch_in_step(p, w, t, h, theta, kind == 1 and releases(w.iw, w.codes1))
     if not exited:
         count_stage_time(w.iw, w.acc, t, t1)
     h_next = move_on(p, w, t1, kind, edge1, h_next)
+    sync_touch(t1, w.qv[QV_0, Q_NF], p, w.acc)  # a touch begun or ended by the event at t1
     if t1 == p[Lp.TC]:
         at_t_c(t1, w.y, p, w.iw, w.acc)
     w.row[0] = record(w.traj, w.row[0], t1, w.y, p, w.iw, w.aux)
