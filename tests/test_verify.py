@@ -303,3 +303,50 @@ def test_real_stream_and_impact_sweeps_verify_themselves(tmp_path):
     assert rec["n"] == 4 and rec["ok"] and rec["tolerance"] == {"table": 1e-11, "rerun": pytest.approx(1e-12)}
     assert set(rec["quantities"]) == {"peak_force", "impulse", "contact_time", "e_eff"}
     assert PL.make_plan(spec(impact)).n_models == 4  # a rigid fence's m2 is not used: 1 run; a free fence: 3
+
+
+# ------------------------------------------------------------------ what it did not see
+def test_share_bound_is_clopper_pearson():
+    """0 of n: 1 - 0.05^(1/n) exactly (~3 / n); k of n: the binomial tail at the bound is 5 %."""
+    from scipy.stats import binom
+
+    for n in (10, 130, 2100):
+        assert V.share_bound(0, n) == pytest.approx(1 - 0.05 ** (1 / n), rel=1e-9)
+    for n in (130, 2100):  # the rule of three, for large n
+        assert V.share_bound(0, n) == pytest.approx(3 / n, rel=0.02)
+    for k, n in ((1, 100), (7, 400), (50, 60)):
+        p = V.share_bound(k, n)
+        assert binom.cdf(k, n, p) == pytest.approx(0.05, rel=1e-6)
+        assert V.share_bound(k - 1, n) < p < V.share_bound(k + 1, n)
+    assert V.share_bound(5, 5) == 1.0 and V.share_bound(0, 0) == 1.0
+
+
+def test_random_rows_bound_the_share_over(tmp_path):
+    """The rows whose B2 is 0 (20 of 400 per case: 5 %) have another outcome at tol / 10. Of the
+    rows drawn uniformly, the share over estimates 5 %, the bound lies above it, the record and
+    the summary line say so."""
+    res = run(tmp_path, simulate=flipping, verify=400)
+    r = res.verify["random"]
+    assert r["n"] >= 190 and r["of_rows"] == 800 and r["threshold"] == 1e-3 and r["confidence"] == 0.95
+    assert r["share_over_bound"] == V.share_bound(r["over"], r["n"])
+    assert 0.05 < r["share_over_bound"] < 0.15 and 0.0 < r["over"] / r["n"] < 0.1
+    assert store.read_metadata(res.out)["verify"]["random"] == r
+    line = V.summary_line(res.verify)
+    assert f"at most {100 * r['share_over_bound']:.2g} % of rows over 0.001, 95 % confidence" in line
+
+
+def test_random_rows_are_a_uniform_draw_not_the_cheap_ones(monkeypatch):
+    """The cost cap ends the random draw instead of skipping costly rows: the rows drawn are a
+    prefix of the seeded permutation of all rows, each re-run through its model run."""
+    sp = spec()
+    plan = PL.make_plan(sp)
+    rng = np.random.default_rng(0)
+    steps = rng.uniform(100, 10000, plan.n_models)  # costs that vary 100-fold
+    crit = {name: np.full(plan.n_models, np.inf) for name, _ in VS.EXTREMES["cycle"]}
+    crit["highest peak_force"] = -rng.uniform(size=plan.n_models)
+    monkeypatch.setattr(VS, "scores", lambda plan, work, tables=None: (crit, steps))
+    sample = VS.choose(plan, None)
+    perm = VS._random_rows(plan, int(sp.hash[:16], 16))
+    assert len(sample.random_rows) >= 1 and sample.random_rows == perm[:len(sample.random_rows)].tolist()
+    assert {int(plan.row_model[r]) for r in sample.random_rows} <= set(sample.models)
+    assert sorted(perm.tolist()) == list(range(800))

@@ -16,6 +16,12 @@ record goes into the table's schema metadata (`fencesweep.verify`), the summary 
 * The verdict: `ok` false when a difference exceeds THRESHOLD (accuracy.AGREEMENT, 1e-3: the
   bound of docs/model.md (15.15) for two implementations of the model), an outcome differs or a result
   is undefined in only one of the two.
+* What it did not see: of the n rows drawn uniformly at random (verify_sample.py), k are over
+  (a difference above THRESHOLD, an outcome that differs or a result defined in one only);
+  `random.share_over_bound` is the one-sided CONFIDENCE upper bound on the share of the
+  table's rows that are over, Clopper-Pearson's (exact for a binomial draw; 0 of n gives
+  1 - 0.05^(1/n), about 3 / n). Drawn without replacement from a finite table the bound only
+  errs on the safe side.
 
 The record depends only on the table and the spec (no times, no counts of jobs), so a resumed
 run writes the same record as an uninterrupted one, whatever --jobs.
@@ -40,6 +46,8 @@ from fencesweep.study.chunks import ChunkTables, tables_of
 STEP_FACTOR_SCALE = 10 ** (-1 / NU.TOL_EXPONENT)
 THRESHOLD = accuracy.AGREEMENT
 WORST = 3  # scenes named in the record (the largest differences; the outcomes that differ)
+#: the confidence of the bound on the share of rows over THRESHOLD
+CONFIDENCE = 0.95
 
 
 class VerificationWarning(UserWarning):
@@ -85,7 +93,7 @@ def begin(plan: PL.Plan, work: Path, n: int | None = None, jobs: int = 1, local:
         reruns = rerun_results()
         found = [_compare(spec.scene, table[m], reruns[i], _freefall(v, table[m]))
                  for m, i, v in zip(sample.models, rows, vals)]
-        return _record(plan, sample, rows, vals, found)
+        return _record(plan, sample, rows, vals, found) | {"random": _random_part(plan, sample, found)}
 
     return finish
 
@@ -178,6 +186,35 @@ def _compare(scene: str, table: dict, rerun: dict, freefall: float) -> dict:
         if worst is not None:
             out["diffs"][q] = worst
     return out
+
+
+def share_bound(k: int, n: int, confidence: float = CONFIDENCE) -> float:
+    """One-sided upper confidence bound on a share p from k of n draws over (Clopper & Pearson
+    1934): the p at which k or fewer of n would be seen with probability 1 - confidence, the
+    `confidence` quantile of Beta(k + 1, n - k); 1 when k = n or nothing was drawn."""
+    if n <= 0 or k >= n:
+        return 1.0
+    from scipy.special import betaincinv
+
+    return float(betaincinv(k + 1, n - k, confidence))
+
+
+def _over(f: dict) -> bool:
+    """Is a re-run's comparison over: a difference above THRESHOLD, a result defined in one of the
+    two only, or an outcome that differs?"""
+    return (f["outcome"] is not None or bool(f["undefined"])
+            or any(d[0] > THRESHOLD for d in f["diffs"].values()))
+
+
+def _random_part(plan: PL.Plan, sample: VS.Sample, found: list) -> dict:
+    """The rows drawn uniformly (verify_sample.py), how many of them are over, and the bound on
+    the share of the table's rows that are (share_bound)."""
+    over_model = {m: _over(f) for m, f in zip(sample.models, found)}
+    k = sum(over_model[int(plan.row_model[r])] for r in sample.random_rows)
+    n = len(sample.random_rows)
+    return {"n": n, "over": int(k), "of_rows": int((plan.row_model >= 0).sum()), "threshold": THRESHOLD,
+            "confidence": CONFIDENCE, "share_over_bound": share_bound(k, n),
+            "method": "Clopper-Pearson, one-sided"}
 
 
 def _plain(x):
@@ -279,7 +316,19 @@ def summary_line(record: dict) -> str:
     k = record["outcome_mismatches"]
     agree = "outcomes all agree" if not k else f"{k} outcome{'s differ' if k > 1 else ' differs'}"
     capped = "; the cost cap left out some runs" if record["sample"]["capped"] else ""
-    return f"verified {record['n']} of {record['of']} runs at tol/10: max rel. difference {qs}; {agree}{capped}"
+    return (f"verified {record['n']} of {record['of']} runs at tol/10: max rel. difference {qs}; {agree}{capped}"
+            f"{bound_text(record)}")
+
+
+def bound_text(record: dict) -> str:
+    """'; at most 2.3 % of rows over 1e-3, 95 % confidence (0 of 130 random rows over)', or
+    nothing for a record without a random part."""
+    r = record.get("random")
+    if not r or not r["n"]:
+        return ""
+    pct = 100 * r["share_over_bound"]
+    return (f"; at most {pct:.2g} % of rows over {r['threshold']:g}, {100 * r['confidence']:.0f} % confidence "
+            f"({r['over']} of {r['n']} random rows over)")
 
 
 def warning_lines(record: dict) -> list:

@@ -8,12 +8,16 @@ read from the finished chunks, the extremes first, then random; the same for the
   criterion, then the next most extreme of each, until half the sample (at least the first of
   every criterion) is chosen; a criterion that no run meets (no rail contact at all) is passed.
   A stream's run is judged by its worst cycle (its steps: all its cycles').
-* Random: the rest, in the order of a permutation seeded by the spec's hash.
+* Random: the rest, rows of the table drawn uniformly without replacement (a permutation
+  seeded by the spec's hash), each re-run through its model run (a run already chosen is not
+  run twice, but its row still counts as drawn). The extremes find the large errors; the
+  random rows bound the share of rows that the re-runs did not see (verify.py, the bound).
 * Cost: counted in the table's integrator steps (n_steps, deterministic, unlike time), a
   re-run costing RERUN_COST times its steps (steps scale like 1 / step_factor). The default
-  sample takes runs in the order above while the re-runs cost at most COST_SHARE of the
-  table's steps, skipping a run that would exceed it; the first MIN_RUNS are always taken (a
-  sweep that small costs little). An explicit N is not capped.
+  sample takes extremes while the re-runs cost at most COST_SHARE of the table's steps,
+  skipping one that would exceed it, then random rows until the next would exceed it (a
+  random draw is never skipped for its cost: that would favour cheap rows); the first
+  MIN_RUNS are always taken (a sweep that small costs little). An explicit N is not capped.
 """
 from __future__ import annotations
 
@@ -65,6 +69,7 @@ class Sample:
     steps: int = 0  # the table's steps of the chosen runs
     total_steps: int = 0  # the table's steps of every model run
     requested: bool = False  # the size was asked for (--verify N), not the default
+    random_rows: list = field(default_factory=list)  # the rows drawn uniformly, in order (scene numbers)
 
 
 def default_size(n_models: int) -> int:
@@ -170,23 +175,32 @@ def choose(plan: PL.Plan, work, n: int | None = None, tables: ChunkTables | None
     crit, steps = scores(plan, work, tables)
     target = default_size(plan.n_models) if n is None else min(int(n), plan.n_models)
     order, extremes = _extremes(crit, target)
-    seed = int(plan.spec.hash[:16], 16)
     cost = np.maximum(steps, 1.0)
     budget = COST_SHARE * cost.sum() / RERUN_COST if n is None else math.inf
     floor = min(MIN_RUNS, target) if n is None else target
     chosen, spent, seen = [], 0.0, set()
-    for m in _then_random(order, plan.n_models, seed):
-        if m in seen:
-            continue
-        seen.add(m)
-        if len(chosen) < floor or spent + cost[m] <= budget:
-            chosen.append(m)
-            spent += cost[m]
+    for m in order:
         if len(chosen) == target:
             break
+        if len(chosen) < floor or spent + cost[m] <= budget:
+            seen.add(m)
+            chosen.append(m)
+            spent += cost[m]
+    drawn = []
+    for row in _random_rows(plan, int(plan.spec.hash[:16], 16)):
+        if len(chosen) == target:
+            break
+        m = int(plan.row_model[row])
+        if m not in seen:
+            if len(chosen) >= floor and spent + cost[m] > budget:
+                break  # a random row is never skipped for its cost (module docstring)
+            seen.add(m)
+            chosen.append(m)
+            spent += cost[m]
+        drawn.append(int(row))
     taken, extreme = set(chosen), set(order)
     return Sample(chosen, {k: v for k, v in extremes.items() if v in taken}, len(taken & extreme), target,
-                  len(chosen) < target, int(steps[chosen].sum()), int(steps.sum()), n is not None)
+                  len(chosen) < target, int(steps[chosen].sum()), int(steps.sum()), n is not None, drawn)
 
 
 def _extremes(crit: dict, target: int) -> tuple:
@@ -214,7 +228,8 @@ def _extremes(crit: dict, target: int) -> tuple:
     return order, {name: runs[0] for name, runs in ranked.items() if runs}
 
 
-def _then_random(order: list, n_models: int, seed: int):
-    """The extremes, then every run in a random order (seeded)."""
-    yield from order
-    yield from (int(m) for m in np.random.default_rng(seed).permutation(n_models))
+def _random_rows(plan: PL.Plan, seed: int) -> np.ndarray:
+    """The table's rows that have a model run (a skipped scene has none), in a random order
+    (seeded): a uniform draw without replacement, read as far as the sample needs."""
+    rows = np.nonzero(plan.row_model >= 0)[0]
+    return rows[np.random.default_rng(seed).permutation(len(rows))]
