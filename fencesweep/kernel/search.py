@@ -8,6 +8,8 @@ name)` and `peak_finder(q, name)` compile the two templates with the scene's fun
 """
 from __future__ import annotations
 
+import math
+
 from fencesweep.kernel.jit import kernel, specialise
 
 #: the scene's predicate in `bisect` and quantity in `peak_max`, bound by bisector / peak_finder
@@ -114,3 +116,29 @@ def _brent_keep(a, b, x, w, v, fx, fw, fv, u, fu):
     if fu <= fv or v == x or v == w:
         return a, b, x, w, u, fx, fw, fu
     return a, b, x, w, v, fx, fw, fv
+
+
+@kernel(inline=True)
+def hermite_max(q0, d0, q1, d1):
+    """The largest interior maximum on (0, 1) of the cubic with q(0) = q0, q'(0) = d0, q(1) = q1,
+    q'(1) = d1 (derivatives in the unit of the interval), -inf when it has none. With the
+    values and rates of a quantity at a step's ends, it says whether the step can hold a
+    maximum above them (a minimum below them, of -q), and about how high: the cubic is the
+    quantity to O(h^4) (docs/model.md (15.9))."""
+    c2 = 3.0 * (q1 - q0) - 2.0 * d0 - d1
+    c3 = 2.0 * (q0 - q1) + d0 + d1
+    best = -math.inf
+    # q'(s) = d0 + 2 c2 s + 3 c3 s^2 = 0, a maximum where q''(s) = 2 c2 + 6 c3 s < 0
+    a, b, c = 3.0 * c3, 2.0 * c2, d0
+    if abs(a) <= 1e-12 * (abs(b) + abs(c)):
+        roots = (-c / b if b != 0.0 else -1.0, -1.0)
+    else:
+        disc = b * b - 4.0 * a * c
+        if disc < 0.0:
+            return best
+        r = math.sqrt(disc)
+        roots = ((-b - r) / (2.0 * a), (-b + r) / (2.0 * a))
+    for s in roots:
+        if 0.0 < s < 1.0 and 2.0 * c2 + 6.0 * c3 * s < 0.0:
+            best = max(best, q0 + s * (d0 + s * (c2 + s * c3)))
+    return best

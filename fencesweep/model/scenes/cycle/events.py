@@ -11,7 +11,7 @@ from __future__ import annotations
 from fencesweep.kernel import numerics as NU
 from fencesweep.kernel import rk
 from fencesweep.kernel.jit import kernel
-from fencesweep.kernel.search import bisector, peak_finder
+from fencesweep.kernel.search import bisector, hermite_max, peak_finder
 from fencesweep.model import layout as Lp
 from fencesweep.model.scenes.contacts import APART, N_SLOTS
 from fencesweep.model.scenes.cycle.layout import IW_CODE, N_CTRL, N_STATE
@@ -87,6 +87,24 @@ def graze_candidate(k, iw, codes1, g0, r0, g1, r1):
 
 
 @kernel(inline=True)
+def dip_candidate(k, iw, codes1, g0, r0, g1, r1, h):
+    """Can slot k dip to contact inside the step although its gap is not closing at the start
+    and opening at the end (graze_candidate)? Apart at both ends, its gap could close within the
+    step at its end rates, and the cubic through the gap's values and rates at the ends
+    (search.hermite_max, docs/model.md (15.9)) has an interior minimum below numerics.DIP_MARGIN
+    of the smaller end gap: a tip that skims along an edge of the load, the gap opening at
+    both ends of a long step, passed in and out of the load inside one."""
+    if iw[IW_CODE + k] != APART or codes1[k] != APART or not (g0[k] > 0.0 and g1[k] > 0.0):
+        return False
+    if graze_candidate(k, iw, codes1, g0, r0, g1, r1):
+        return False
+    near = min(g0[k], g1[k])
+    if near >= (abs(r0[k]) + abs(r1[k])) * h:
+        return False
+    return -hermite_max(-g0[k], -r0[k] * h, -g1[k], -r1[k] * h) < NU.DIP_MARGIN * near
+
+
+@kernel(inline=True)
 def crossing_candidate(k, iw, codes1, g0, g1):
     """Can slot k have touched inside the step while its gap changed sign? Apart at both ends
     (out of its span at one of them: docs/model.md §15, Events), its gap of one sign at the start and
@@ -128,7 +146,8 @@ def graze_theta(p, w, t, h):
     best = 2.0
     slot = -1
     for k in range(N_SLOTS):
-        if not graze_candidate(k, w.iw, w.codes1, w.g0, w.r0, w.g1, w.r1):
+        if not (graze_candidate(k, w.iw, w.codes1, w.g0, w.r0, w.g1, w.r1)
+                or dip_candidate(k, w.iw, w.codes1, w.g0, w.r0, w.g1, w.r1, h)):
             continue
         th, ng = min_gap((t, h, w.y, w.Q, p, w.iw, w.tmp, k), 0.0, 1.0, NU.PEAK_TOL)
         if ng > 0.0 and th < best and mask_changed((t, h, w.y, w.Q, p, w.iw, w.tmp, 1 << k), th):
@@ -168,7 +187,8 @@ def find_event(p, w, t, h, exited):
     for k in range(N_SLOTS):
         if slot_changed(k, w.codes1[k], w.tags1[k], w.iw):
             mask |= 1 << k
-        grazing |= graze_candidate(k, w.iw, w.codes1, w.g0, w.r0, w.g1, w.r1)
+        grazing |= (graze_candidate(k, w.iw, w.codes1, w.g0, w.r0, w.g1, w.r1)
+                    or dip_candidate(k, w.iw, w.codes1, w.g0, w.r0, w.g1, w.r1, h))
         crossing |= crossing_candidate(k, w.iw, w.codes1, w.g0, w.g1)
     hi = 1.0 if mask != 0 else 2.0
     tol = NU.EVENT_TOL * max(1.0, t) / h

@@ -4,12 +4,13 @@ the step's start and falls at its end has an interior maximum, found by Brent's 
 step's dense output (kernel/search.py) and valued at the state of a step of the method to it."""
 from __future__ import annotations
 
+
 import math
 
 from fencesweep.kernel import numerics as NU
 from fencesweep.kernel import rk
 from fencesweep.kernel.jit import kernel
-from fencesweep.kernel.search import bisector, peak_finder
+from fencesweep.kernel.search import bisector, hermite_max, peak_finder
 from fencesweep.model import layout as Lp
 from fencesweep.model.scenes.cycle.books import note_touch, record, touching
 from fencesweep.model.scenes.cycle.events import ensure_dense
@@ -19,6 +20,7 @@ from fencesweep.model.scenes.cycle.layout import (A_QMAX, A_TOUCH, AX_NF, AX_NR,
 from fencesweep.model.scenes.cycle.rhs import deflection, fence_state, rhs, step
 
 UNJUDGED = -1.0  # rising[k] when the step before did not judge quantity k at its end
+SAMPLE = 1e-3  # judge_forces samples the forces this fraction of the step inside its ends
 
 
 @kernel()
@@ -79,10 +81,11 @@ def near_maximum(q0, q1, rate, span, acc, k):
 def reach(q0, q1, rate, span):
     """How high a force may climb inside a step of length span from its end values q0, q1 and
     its rate over the step before (numerics.PEAK_REACH): the larger end value plus PEAK_REACH
-    times the larger of the change over the step and the change at the rate before. A concave
-    force lies below its tangent at the start, whose slope the previous secant exceeds; the
-    factor covers a force still convex at the start (a pulse's rise)."""
-    return max(q0, q1) + NU.PEAK_REACH * max(abs(q1 - q0), abs(rate) * span)
+    times the larger of its rise over the step and its rise at the rate before (a force that
+    falls into the step and over it has no maximum inside it above its start: a new rise is
+    a contact's onset, an event). A concave force lies below its tangent at the start, whose
+    slope the previous secant exceeds; the factor covers a force still convex there."""
+    return max(q0, q1) + NU.PEAK_REACH * max(0.0, q1 - q0, rate * span)
 
 
 @kernel(inline=True)
@@ -92,32 +95,6 @@ def fence_values(t, y, p, iw):
     al, dal, aw, daw = fence_state(t, y, p, iw[IW_MODE])
     dev, rate = deflection(al, dal, aw, daw)
     return dev, rate, al, dal
-
-
-@kernel(inline=True)
-def hermite_max(q0, d0, q1, d1):
-    """The largest interior maximum on (0, 1) of the cubic with q(0) = q0, q'(0) = d0, q(1) = q1,
-    q'(1) = d1 (derivatives in the unit of the interval), -inf when it has none. With the
-    values and rates of a quantity at a step's ends, it says whether the step can hold a
-    maximum above them, and about how high: the cubic is the quantity to O(h^4) (docs/model.md
-    (15.9))."""
-    c2 = 3.0 * (q1 - q0) - 2.0 * d0 - d1
-    c3 = 2.0 * (q0 - q1) + d0 + d1
-    best = -math.inf
-    # q'(s) = d0 + 2 c2 s + 3 c3 s^2 = 0, a maximum where q''(s) = 2 c2 + 6 c3 s < 0
-    a, b, c = 3.0 * c3, 2.0 * c2, d0
-    if abs(a) <= 1e-12 * (abs(b) + abs(c)):
-        roots = (-c / b if b != 0.0 else -1.0, -1.0)
-    else:
-        disc = b * b - 4.0 * a * c
-        if disc < 0.0:
-            return best
-        r = math.sqrt(disc)
-        roots = ((-b - r) / (2.0 * a), (-b + r) / (2.0 * a))
-    for s in roots:
-        if 0.0 < s < 1.0 and 2.0 * c2 + 6.0 * c3 * s < 0.0:
-            best = max(best, q0 + s * (d0 + s * (c2 + s * c3)))
-    return best
 
 
 @kernel(inline=True)
@@ -159,7 +136,7 @@ def judge_forces(p, w, t, h, theta_end):
     not judged yet) and samples just before its end (QV_B), a thousandth of the step inside."""
     ensure_dense(p, w, h)
     q0, qa, qb, rising = w.qv[QV_0], w.qv[QV_A], w.qv[QV_B], w.rising
-    d = 1e-3 * theta_end
+    d = SAMPLE * theta_end
     if rising[Q_NF] == UNJUDGED or rising[Q_NR] == UNJUDGED:
         rk.dense_eval(w.y, w.Q, d, w.tmp, N_CTRL)
         quantities(t + d * h, w.tmp, p, w.iw, w.auxs, w.dy, qa, True)
@@ -168,6 +145,22 @@ def judge_forces(p, w, t, h, theta_end):
                 rising[k] = 1.0 if qa[k] > q0[k] else 0.0
     rk.dense_eval(w.y, w.Q, theta_end - d, w.tmp, N_CTRL)
     quantities(t + (theta_end - d) * h, w.tmp, p, w.iw, w.auxs, w.dy, qb, True)
+
+
+@kernel(inline=True)
+def peak_inside(q0, qa, qb, q1, rate, span, fresh):
+    """Has a force that rose at the step's start (judge_forces) a maximum inside the step? It
+    falls at the end (qb above q1), or, rising at both ends, the cubic through its values and
+    rates at the ends (search.hermite_max, docs/model.md (15.9)) has an interior maximum above
+    both: a sum of two contacts' forces that peaks and dips again before one of them lets go
+    (the step's end). The rate at the start is qa's (`fresh`: sampled in this step) or the step
+    before's."""
+    if qb > q1:
+        return True
+    d0 = (qa - q0) / SAMPLE if fresh else rate * span
+    if not math.isfinite(d0):
+        return False
+    return hermite_max(q0, d0, q1, (q1 - qb) / SAMPLE) > max(q0, q1)
 
 
 @kernel(inline=True)
@@ -191,10 +184,12 @@ def track_maxima(p, w, t, h, theta_end):
     span = theta_end * h
     for k in range(N_Q):
         ths[k] = -1.0
-    forces = near_maximum(q0, q1, rate, span, acc, Q_NF) or near_maximum(q0, q1, rate, span, acc, Q_NR)
-    if rising[N_Q] != 0.0:
+    if rising[N_Q] != 0.0:  # after an event: the force's rate before it says nothing of its course
         for k in range(Q_DEFL):
             rising[k] = UNJUDGED
+            rate[k] = math.inf
+    forces = near_maximum(q0, q1, rate, span, acc, Q_NF) or near_maximum(q0, q1, rate, span, acc, Q_NR)
+    fresh_nf, fresh_nr = rising[Q_NF] == UNJUDGED, rising[Q_NR] == UNJUDGED  # qa sampled: the rate at the start
     if forces:
         judge_forces(p, w, t, h, theta_end)
     fence_peaks(p, w, t, h, theta_end)
@@ -205,7 +200,9 @@ def track_maxima(p, w, t, h, theta_end):
             rising[k] = UNJUDGED
             continue
         if k < Q_DEFL:
-            inside = rising[k] == 1.0 and qb[k] > q1[k] and reach(q0[k], q1[k], rate[k], span) >= NU.PEAK_CANDIDATE * m
+            inside = (rising[k] == 1.0 and reach(q0[k], q1[k], rate[k], span) >= NU.PEAK_CANDIDATE * m
+                      and peak_inside(q0[k], w.qv[QV_A, k], qb[k], q1[k], rate[k], span,
+                                      fresh_nf if k == Q_NF else fresh_nr))
             rising[k] = 1.0 if q1[k] > qb[k] else 0.0
         else:
             inside = qb[k] >= NU.PEAK_CANDIDATE * m
@@ -263,8 +260,19 @@ def touch_in_step(p, w, t, h, theta_end, release):
     first onset, an event); downwards at the step's end when the step ends at a `release` (the
     force falls from the floor to 0 within a rounding of it, and the step's dense output is
     least accurate just there: events.release_state), else where it is located on the dense
-    output by bisection (events are located inside the step, §9)."""
+    output by bisection (events are located inside the step, §9). A release that ends a step
+    begun without a touch may have had one inside it (a light re-contact of ~0.2 N, pushing and
+    letting go within a step): the force's maximum in the step is searched (peak_of), and a
+    touch there is noted, begun and ended."""
     was = w.acc[A_TOUCH] != 0.0
+    if release and not was:
+        ensure_dense(p, w, h)
+        th, qm = peak_of((t, h, w.y, w.Q, p, w.iw, w.tmp, w.auxs, w.dy, w.qv[QV_S], Q_NF), 0.0, theta_end,
+                         NU.PEAK_TOL)
+        if touching(qm, p):
+            note_touch(t + th * h, True, w.acc)
+            note_touch(t + theta_end * h, False, w.acc)
+        return
     if touching(w.qv[QV_1, Q_NF], p) == was:
         return
     if not was or release:

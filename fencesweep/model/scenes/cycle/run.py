@@ -63,6 +63,32 @@ def light_fence_contact(p, w):
 
 
 @kernel(inline=True)
+def closing_time(g, r, a):
+    """When a gap g > 0 with rate r and acceleration a closes (g + r tau + a tau^2 / 2 = 0), inf
+    if it does not (docs/model.md §15, Events)."""
+    if a < 0.0:
+        return (r + math.sqrt(r * r - 2.0 * a * g)) / -a
+    if r < 0.0:
+        return g / -r
+    return math.inf
+
+
+@kernel(inline=True)
+def approach_step(p, w, dt, h_next):
+    """The step after one of length dt: at most the time in which a slot apart at its end closes
+    its gap at the gap's rate there and its acceleration over the step (closing_time), and not
+    under numerics.APPROACH_FLOOR of the largest step: a step that spans a whole approach and
+    separation, both ends apart and the gap opening at both, sees no contact in it."""
+    if w.iw[IW_LOAD] == 0 or dt <= 0.0:
+        return h_next
+    for k in range(N_SLOTS):
+        if w.codes1[k] == APART and w.g1[k] > 0.0 and math.isfinite(w.g1[k]):
+            tau = closing_time(w.g1[k], w.r1[k], (w.r1[k] - w.r0[k]) / dt)
+            h_next = min(h_next, max(tau, NU.APPROACH_FLOOR * p[Lp.H_MAX]))
+    return h_next
+
+
+@kernel(inline=True)
 def set_tolerance(p, w):
     """The tolerances of the next step (docs/model.md (15.14); numerics.APPROACH_TOL, FREE_TOL
     say why): the run's, times APPROACH_TOL while the load is on the belt and touches nothing
@@ -136,6 +162,7 @@ def accept(p, w, t, h, t1, err, h_next):
     touch_in_step(p, w, t, h, theta, kind == 1 and releases(w.iw, w.codes1))
     if not exited:
         count_stage_time(w.iw, w.acc, t, t1)
+    h_next = approach_step(p, w, t1 - t, h_next)
     h_next = move_on(p, w, t1, kind, edge1, h_next)
     sync_touch(t1, w.qv[QV_0, Q_NF], p, w.acc)  # a touch begun or ended by the event at t1
     if t1 == p[Lp.TC]:
