@@ -93,13 +93,12 @@ def dip_candidate(k, iw, codes1, g0, r0, g1, r1, h):
     step at its end rates, and the cubic through the gap's values and rates at the ends
     (search.hermite_max, docs/model.md (15.9)) has an interior minimum below numerics.DIP_MARGIN
     of the smaller end gap: a tip that skims along an edge of the load, the gap opening at
-    both ends of a long step, passed in and out of the load inside one."""
-    if iw[IW_CODE + k] != APART or codes1[k] != APART or not (g0[k] > 0.0 and g1[k] > 0.0):
-        return False
-    if graze_candidate(k, iw, codes1, g0, r0, g1, r1):
-        return False
+    both ends of a long step, passed in and out of the load inside one. (The caller asks only
+    of steps over APPROACH_FLOOR of the largest step: a shorter one holds no such dip.)"""
     near = min(g0[k], g1[k])
-    if near >= (abs(r0[k]) + abs(r1[k])) * h:
+    if not (near > 0.0 and near < (abs(r0[k]) + abs(r1[k])) * h):
+        return False
+    if iw[IW_CODE + k] != APART or codes1[k] != APART or graze_candidate(k, iw, codes1, g0, r0, g1, r1):
         return False
     return -hermite_max(-g0[k], -r0[k] * h, -g1[k], -r1[k] * h) < NU.DIP_MARGIN * near
 
@@ -147,7 +146,7 @@ def graze_theta(p, w, t, h):
     slot = -1
     for k in range(N_SLOTS):
         if not (graze_candidate(k, w.iw, w.codes1, w.g0, w.r0, w.g1, w.r1)
-                or dip_candidate(k, w.iw, w.codes1, w.g0, w.r0, w.g1, w.r1, h)):
+                or (h > NU.APPROACH_FLOOR * p[Lp.H_MAX] and dip_candidate(k, w.iw, w.codes1, w.g0, w.r0, w.g1, w.r1, h))):
             continue
         th, ng = min_gap((t, h, w.y, w.Q, p, w.iw, w.tmp, k), 0.0, 1.0, NU.PEAK_TOL)
         if ng > 0.0 and th < best and mask_changed((t, h, w.y, w.Q, p, w.iw, w.tmp, 1 << k), th):
@@ -184,11 +183,12 @@ def find_event(p, w, t, h, exited):
     mask = 0
     grazing = False
     crossing = False
+    long_step = h > NU.APPROACH_FLOOR * p[Lp.H_MAX]
     for k in range(N_SLOTS):
         if slot_changed(k, w.codes1[k], w.tags1[k], w.iw):
             mask |= 1 << k
         grazing |= (graze_candidate(k, w.iw, w.codes1, w.g0, w.r0, w.g1, w.r1)
-                    or dip_candidate(k, w.iw, w.codes1, w.g0, w.r0, w.g1, w.r1, h))
+                    or (long_step and dip_candidate(k, w.iw, w.codes1, w.g0, w.r0, w.g1, w.r1, h)))
         crossing |= crossing_candidate(k, w.iw, w.codes1, w.g0, w.g1)
     hi = 1.0 if mask != 0 else 2.0
     tol = NU.EVENT_TOL * max(1.0, t) / h

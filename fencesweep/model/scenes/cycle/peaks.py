@@ -148,15 +148,17 @@ def judge_forces(p, w, t, h, theta_end):
 
 
 @kernel(inline=True)
-def peak_inside(q0, qa, qb, q1, rate, span, fresh):
+def peak_inside(q0, qa, qb, q1, rate, span, fresh, at_event):
     """Has a force that rose at the step's start (judge_forces) a maximum inside the step? It
-    falls at the end (qb above q1), or, rising at both ends, the cubic through its values and
-    rates at the ends (search.hermite_max, docs/model.md (15.9)) has an interior maximum above
-    both: a sum of two contacts' forces that peaks and dips again before one of them lets go
-    (the step's end). The rate at the start is qa's (`fresh`: sampled in this step) or the step
-    before's."""
+    falls at the end (qb above q1), or, rising at both ends of a step cut short by an event
+    (`at_event`), the cubic through its values and rates at the ends (search.hermite_max,
+    docs/model.md (15.9)) has an interior maximum above both: a sum of two contacts' forces that
+    peaks and dips again before one of them lets go. The rate at the start is qa's (`fresh`:
+    sampled in this step) or the step before's."""
     if qb > q1:
         return True
+    if not at_event:
+        return False
     d0 = (qa - q0) / SAMPLE if fresh else rate * span
     if not math.isfinite(d0):
         return False
@@ -202,7 +204,7 @@ def track_maxima(p, w, t, h, theta_end):
         if k < Q_DEFL:
             inside = (rising[k] == 1.0 and reach(q0[k], q1[k], rate[k], span) >= NU.PEAK_CANDIDATE * m
                       and peak_inside(q0[k], w.qv[QV_A, k], qb[k], q1[k], rate[k], span,
-                                      fresh_nf if k == Q_NF else fresh_nr))
+                                      fresh_nf if k == Q_NF else fresh_nr, theta_end < 1.0))
             rising[k] = 1.0 if q1[k] > qb[k] else 0.0
         else:
             inside = qb[k] >= NU.PEAK_CANDIDATE * m
@@ -252,8 +254,18 @@ def touch_changed(ctx, theta):
 find_touch = bisector(touch_changed, "cycle_find_touch")
 
 
-@kernel()
+@kernel(inline=True)
 def touch_in_step(p, w, t, h, theta_end, release):
+    """touch_changes, called only for the steps that need it: most steps neither end at a release
+    nor carry the fence force across the touch floor (a call with the work arrays costs ~1 % of
+    a step)."""
+    was = w.acc[A_TOUCH] != 0.0
+    if (release and not was) or touching(w.qv[QV_1, Q_NF], p) != was:
+        touch_changes(p, w, t, h, theta_end, release)
+
+
+@kernel()
+def touch_changes(p, w, t, h, theta_end, release):
     """The fence force passing the touch floor inside the step [t, t + theta_end h] (docs/model.md
     (11.10): its value at the step's end, w.qv[QV_1], on the other side of the floor than the
     touch at its start), noted by books.note_touch: upwards at once (t_A is dated from the force's

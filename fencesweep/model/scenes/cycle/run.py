@@ -79,12 +79,17 @@ def approach_step(p, w, dt, h_next):
     its gap at the gap's rate there and its acceleration over the step (closing_time), and not
     under numerics.APPROACH_FLOOR of the largest step: a step that spans a whole approach and
     separation, both ends apart and the gap opening at both, sees no contact in it."""
-    if w.iw[IW_LOAD] == 0 or dt <= 0.0:
+    floor = NU.APPROACH_FLOOR * p[Lp.H_MAX]
+    if w.iw[IW_LOAD] == 0 or dt <= 0.0 or h_next <= floor:  # (a step under the floor is not cut)
         return h_next
+    per_dt = 1.0 / dt
     for k in range(N_SLOTS):
-        if w.codes1[k] == APART and w.g1[k] > 0.0 and math.isfinite(w.g1[k]):
-            tau = closing_time(w.g1[k], w.r1[k], (w.r1[k] - w.r0[k]) / dt)
-            h_next = min(h_next, max(tau, NU.APPROACH_FLOOR * p[Lp.H_MAX]))
+        g, r = w.g1[k], w.r1[k]
+        a = (r - w.r0[k]) * per_dt
+        # cannot close within h_next at its rate and acceleration: nothing to compute
+        if w.codes1[k] != APART or not (g > 0.0 and g + h_next * (min(r, 0.0) + 0.5 * h_next * min(a, 0.0)) <= 0.0):
+            continue
+        h_next = min(h_next, max(closing_time(g, r, a), floor))
     return h_next
 
 
