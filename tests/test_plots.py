@@ -221,7 +221,7 @@ def test_worst_over_placements_takes_the_largest():
 
 def test_escape_causes_read_off_the_row():
     base = dict(outcome="escaped", drive="rigid", R_s=0.0, dP=0.6, l=1.2, A=0.1, t_c=1.36, n_impacts=1,
-                contact_time=0.01)
+                contact_time=0.01, peak_force=1000.0)
     xt = math.sqrt(1.2 ** 2 - 0.6 ** 2)
     rows = [dict(base, outcome="scraped", v=2.0, t_first_contact=0.43),
             dict(base, v=3.0, t_first_contact=math.nan, n_impacts=0),       # never touched
@@ -229,9 +229,11 @@ def test_escape_causes_read_off_the_row():
             dict(base, v=2.5, t_first_contact=(xt + 0.03) / 2.5),           # corner 3 cm past the tip
             dict(base, v=2.4, t_first_contact=(xt - 0.01) / 2.4),           # corner 1 cm short of it
             dict(base, v=1.0, t_first_contact=0.5, contact_time=0.2),       # B = 0.7 > t_c / 2
-            dict(base, v=1.0, t_first_contact=0.3)]                         # none of these
+            dict(base, v=1.0, t_first_contact=0.3),                         # none of these
+            dict(base, drive="free", v=1.0, t_first_contact=math.nan, n_impacts=0, peak_force=5e-15),  # at rest
+            dict(base, drive="free", v=3.0, t_first_contact=math.nan, n_impacts=0, peak_force=0.0)]    # never touched
     got = F5A.escape_cause(pd.DataFrame(rows)).tolist()
-    assert got == ["", "no_contact", "free", "tip", "at_tip", "late", "other"]
+    assert got == ["", "no_contact", "free", "tip", "at_tip", "late", "other", "rest", "no_contact"]
     assert set(got) - {""} <= set(F5A.ESCAPE_CAUSES)
 
 

@@ -27,6 +27,8 @@ def front_at_contact(df):
 #: why a load escapes (escape_cause), in words
 ESCAPE_CAUSES = {
     "no_contact": "no contact: the load is past the fence before the fence reaches it",
+    "rest": "at rest on a free fence: the load lies on the fence from t = 0 at a force of rounding size, no touch "
+            "(docs/model.md (11.10)), and that push releases the free fence at once (§3); nothing drives the load on",
     "free": "free fence: released at the first contact, nothing drives the load on (docs/model.md §3: an idealisation "
             "of the impact, not a working drive)",
     "tip": "tip on the face: the load's leading corner is already past the fence's tip when the tip rises to the "
@@ -48,10 +50,12 @@ def escape_cause(df):
     xf = front_at_contact(df).to_numpy(float)
     xt = tip_reach_x(df["l"], df["dP"])
     B = tA + df["contact_time"].to_numpy(float)
-    conds = [df["outcome"].to_numpy() != "escaped", ~np.isfinite(tA) | (df["n_impacts"].to_numpy() == 0),
-             df["drive"].to_numpy() == "free", xf > xt, xt - xf < df["A"].to_numpy(float) / 2,
-             B >= df["t_c"].to_numpy(float) / 2]
-    return pd.Series(np.select(conds, ["", "no_contact", "free", "tip", "at_tip", "late"], "other"), index=df.index)
+    untouched = ~np.isfinite(tA) | (df["n_impacts"].to_numpy() == 0)
+    free = df["drive"].to_numpy() == "free"
+    conds = [df["outcome"].to_numpy() != "escaped", untouched & free & (df["peak_force"].to_numpy(float) > 0),
+             untouched, free, xf > xt, xt - xf < df["A"].to_numpy(float) / 2, B >= df["t_c"].to_numpy(float) / 2]
+    return pd.Series(np.select(conds, ["", "rest", "no_contact", "free", "tip", "at_tip", "late"], "other"),
+                     index=df.index)
 
 
 def largest_drop(d, axis: str):
