@@ -87,6 +87,13 @@ def graze_candidate(k, iw, codes1, g0, r0, g1, r1):
 
 
 @kernel(inline=True)
+def long_step(p, h):
+    """Is a step of length h over numerics.APPROACH_FLOOR of the largest step: long enough to hold
+    a gap's dip between two opening ends (dip_candidate), and to be cut by run.approach_step?"""
+    return h > NU.APPROACH_FLOOR * p[Lp.H_MAX]
+
+
+@kernel(inline=True)
 def dip_candidate(k, iw, codes1, g0, r0, g1, r1, h):
     """Can slot k dip to contact inside the step although its gap is not closing at the start
     and opening at the end (graze_candidate)? Apart at both ends, its gap could close within the
@@ -146,7 +153,7 @@ def graze_theta(p, w, t, h):
     slot = -1
     for k in range(N_SLOTS):
         if not (graze_candidate(k, w.iw, w.codes1, w.g0, w.r0, w.g1, w.r1)
-                or (h > NU.APPROACH_FLOOR * p[Lp.H_MAX] and dip_candidate(k, w.iw, w.codes1, w.g0, w.r0, w.g1, w.r1, h))):
+                or (long_step(p, h) and dip_candidate(k, w.iw, w.codes1, w.g0, w.r0, w.g1, w.r1, h))):
             continue
         th, ng = min_gap((t, h, w.y, w.Q, p, w.iw, w.tmp, k), 0.0, 1.0, NU.PEAK_TOL)
         if ng > 0.0 and th < best and mask_changed((t, h, w.y, w.Q, p, w.iw, w.tmp, 1 << k), th):
@@ -183,12 +190,12 @@ def find_event(p, w, t, h, exited):
     mask = 0
     grazing = False
     crossing = False
-    long_step = h > NU.APPROACH_FLOOR * p[Lp.H_MAX]
+    long = long_step(p, h)
     for k in range(N_SLOTS):
         if slot_changed(k, w.codes1[k], w.tags1[k], w.iw):
             mask |= 1 << k
         grazing |= (graze_candidate(k, w.iw, w.codes1, w.g0, w.r0, w.g1, w.r1)
-                    or (long_step and dip_candidate(k, w.iw, w.codes1, w.g0, w.r0, w.g1, w.r1, h)))
+                    or (long and dip_candidate(k, w.iw, w.codes1, w.g0, w.r0, w.g1, w.r1, h)))
         crossing |= crossing_candidate(k, w.iw, w.codes1, w.g0, w.g1)
     hi = 1.0 if mask != 0 else 2.0
     tol = NU.EVENT_TOL * max(1.0, t) / h

@@ -23,7 +23,7 @@ from fencesweep.model import results as Rs
 from fencesweep.model.contact import pulse_time
 from fencesweep.model.scenes.contacts import APART, N_SLOTS, RAIL0, TIP
 from fencesweep.model.scenes.cycle.books import after_step, at_t_c, count_stage_time, record, sync_touch, time_out
-from fencesweep.model.scenes.cycle.events import event_state, find_event
+from fencesweep.model.scenes.cycle.events import event_state, find_event, long_step
 from fencesweep.model.scenes.cycle.layout import (IW_CODE, IW_LOAD, A_DMAX, A_EXITED, A_QMAX, A_STATUS, AX_DMAX, N_Q, N_STATE, Q_NF,
                                                   QV_0, QV_1)
 from fencesweep.model.scenes.cycle.peaks import (quantities, quantities_from_aux, record_peaks, touch_in_step,
@@ -79,9 +79,9 @@ def approach_step(p, w, dt, h_next):
     its gap at the gap's rate there and its acceleration over the step (closing_time), and not
     under numerics.APPROACH_FLOOR of the largest step: a step that spans a whole approach and
     separation, both ends apart and the gap opening at both, sees no contact in it."""
-    floor = NU.APPROACH_FLOOR * p[Lp.H_MAX]
-    if w.iw[IW_LOAD] == 0 or dt <= 0.0 or h_next <= floor:  # (a step under the floor is not cut)
+    if w.iw[IW_LOAD] == 0 or dt <= 0.0 or not long_step(p, h_next):  # (a step under the floor is not cut)
         return h_next
+    floor = NU.APPROACH_FLOOR * p[Lp.H_MAX]
     per_dt = 1.0 / dt
     for k in range(N_SLOTS):
         g, r = w.g1[k], w.r1[k]
