@@ -51,8 +51,8 @@ MAX_LEARNER_POINTS = 2500  # the issue's bars: <= 1/10 of the cycles, <= 0.5 % c
 
 def run_study(name: str, path: str, jobs: int, tmp: Path) -> dict:
     import fencesweep
-    from fencesweep.study import adaptive_maps as AM
-    from fencesweep.study import adaptive_points as APT
+    from fencesweep.study.adaptive import maps as AM
+    from fencesweep.study.adaptive import points as APT
     from fencesweep.study.api import load_spec
 
     spec = load_spec(ROOT / path)
@@ -60,7 +60,7 @@ def run_study(name: str, path: str, jobs: int, tmp: Path) -> dict:
     full_out, timing = tmp / f"{name}_full.parquet", tmp / f"{name}_full.json"
     kept = timing.exists() and full_out.exists()
     if kept:  # --keep: the full grid of an earlier run, and its time
-        from fencesweep.study import store
+        from fencesweep.study.store import table as store
 
         full, t_full = store.read_table(full_out), json.loads(timing.read_text())["seconds"]
         print(f"{name}: the full grid and its time from {full_out} (--keep)", flush=True)

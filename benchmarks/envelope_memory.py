@@ -67,7 +67,7 @@ def main() -> None:
     ap.add_argument("--render", action="store_true", help="only rewrite the page from results/envelope_memory.csv")
     args = ap.parse_args()
     sys.path.insert(0, str(ROOT))
-    from fencesweep.study import specfile
+    from fencesweep.study.spec import file as specfile
 
     text = SPEC.read_text()
     n_loads = len(specfile.load(SPEC).envelope.loads)

@@ -26,8 +26,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # this tree's pack
 
 from fencesweep.model import params as P  # noqa: E402
 from fencesweep.model import simulate as api  # noqa: E402
-from fencesweep.study import compute as W  # noqa: E402
-from fencesweep.study import runs, store  # noqa: E402
+from fencesweep.study.sweep import compute as W  # noqa: E402
+from fencesweep.study.sweep import runs  # noqa: E402
+from fencesweep.study.store import table as store
 
 
 def _noop(c, ids, rows, path, meta, shared=None):

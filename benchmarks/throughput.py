@@ -6,7 +6,7 @@ Numba cache, and once each cold (cache removed first, so the JIT compile is incl
 each run it records the wall time, cycles per second, the CPU seconds of the process tree,
 its peak resident memory (sampled every 0.5 s), the CPU that *other* processes used on the
 machine meanwhile (from /proc/stat; a run waits first until the machine is quiet), and
-where the time went (`Outcome.timings` of fencesweep.study.sweep.run_sweep: planning, kernel
+where the time went (`Outcome.timings` of fencesweep.study.sweep.pipeline.run_sweep: planning, kernel
 load, compute with the workers' run and write seconds, assembly).
 
 `--orchestration-of REV` also measures, in the same run and interleaved, the same package
@@ -63,7 +63,7 @@ t0 = time.perf_counter()
 import fencesweep
 if os.path.isdir(os.path.join(os.path.dirname(fencesweep.__file__), "study")):  # the layered package
     from fencesweep import cli
-    from fencesweep.study import sweep
+    from fencesweep.study.sweep import pipeline as sweep
 else:  # the flat package of older revisions
     from fencesweep import cli, sweep
 imports = time.perf_counter() - t0

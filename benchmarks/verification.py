@@ -1,5 +1,5 @@
 """Does a table's verification tell its error? The difference a sweep's verification reports
-(each run against a re-run at tol / 10, fencesweep/study/verify.py) and the per-row
+(each run against a re-run at tol / 10, fencesweep/study/sweep/verify.py) and the per-row
 error_estimate, both against the true error of the validation scenes (issue "Trust", item 1).
 
     python benchmarks/verification.py   -> prints; writes results/figures/verification.png and
@@ -13,7 +13,7 @@ rtol 1e-10, benchmarks/reference.py), with its fully resolved parameters:
   * verification difference d: the engine at the default setting against the engine at
     step_factor x verify.STEP_FACTOR_SCALE (tol / 10), exactly what a sweep's verification
     computes for the runs it samples;
-both as relative differences with the floors of fencesweep/study/accuracy.py, for peak_force,
+both as relative differences with the floors of fencesweep/study/sweep/accuracy.py, for peak_force,
 deflection_max and t_exit (the results the reference gives). And the per-row error_estimate
 (a relative error of the state) against the largest of the three true errors. No time is
 measured: the page's timings are work_precision.py's.
@@ -33,8 +33,8 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 import make_reference  # noqa: E402
 
 import fencesweep  # noqa: E402
-from fencesweep.study import accuracy  # noqa: E402
-from fencesweep.study.verify import STEP_FACTOR_SCALE  # noqa: E402
+from fencesweep.study.sweep import accuracy  # noqa: E402
+from fencesweep.study.sweep.verify import STEP_FACTOR_SCALE  # noqa: E402
 
 QUANTITIES = ("peak_force", "deflection_max", "t_exit")
 #: an error below this is "exact" on the page (both are at the reference's own accuracy)

@@ -5,20 +5,21 @@ sweeps): grid, estimate, design, sensitivity, as the CLI's commands, and points 
 sweep's per-design-point table); they live in fencesweep.study.api and are imported when first
 used, so that `import fencesweep` loads neither pandas nor pyarrow.
 """
-from importlib import metadata as _metadata
-
-try:  # the version lives in one place, pyproject.toml; the installed metadata carries it
-    __version__ = _metadata.version("fencesweep")
-except _metadata.PackageNotFoundError:  # a source tree on sys.path, never installed
-    __version__ = "0+unknown"
-
-from fencesweep.model.params import CASES, ParameterError, resolve
+from fencesweep.version import __version__
+from fencesweep.errors import (DesignError, EnvelopeError, ParameterError, SensitivityError, SpecError,
+                               SweepInterrupted, SweepWriteError, UsageError, VerificationWarning, WriteError)
+from fencesweep.model.params import CASES, resolve
 from fencesweep.model.simulate import simulate, simulate_resolved
 
 #: the studies' functions (fencesweep.study.api), imported on first use
 _STUDIES = ("grid", "estimate", "design", "sensitivity", "points")
 
-__all__ = ["simulate", "simulate_resolved", "resolve", "CASES", "ParameterError", "__version__", *_STUDIES]
+#: what a user catches: bad input (ParameterError and its kinds, UsageError), a file that could not be
+#: written, an interrupted sweep, a verification that failed (fencesweep/errors.py)
+__all__ = ["simulate", "simulate_resolved", "resolve", "CASES", "__version__",
+           "ParameterError", "SpecError", "EnvelopeError", "DesignError", "SensitivityError", "UsageError",
+           "WriteError", "SweepWriteError", "SweepInterrupted", "VerificationWarning",
+           "grid", "estimate", "design", "sensitivity", "points"]
 
 
 def __getattr__(name: str):

@@ -16,10 +16,10 @@ import sys
 import warnings
 from pathlib import Path
 
-from fencesweep import __version__
+from fencesweep.version import __version__
 from fencesweep.model import params as P
 from fencesweep.study import api
-from fencesweep.errors import UsageError, WriteError
+from fencesweep.errors import MissingInput, MissingTable, UsageError, VerificationWarning, WriteError
 
 __all__ = ["main", "build_parser", "UsageError"]
 
@@ -69,7 +69,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             raise UsageError(f"--trajectory {args.trajectory!r} must end with .parquet")
     res, traj = api.simulate_resolved(vals, trajectory=bool(args.trajectory))
     if args.trajectory:
-        from fencesweep.study.store import write_trajectory
+        from fencesweep.study.store.table import write_trajectory
 
         summary = {k: v for k, v in res.items() if k != "cycles"}
         write_trajectory(traj, args.trajectory, dict(vals, loads=None if loads is None else list(vals["loads"])),
@@ -223,14 +223,12 @@ def cmd_grid(args: argparse.Namespace) -> int:
 
 
 def verify_warning() -> type:
-    from fencesweep.study.verify import VerificationWarning
-
     return VerificationWarning
 
 
 def _grid_summary(run: dict, say) -> None:
     """What a finished sweep wrote, its verification and its warnings."""
-    from fencesweep.study import verify as V
+    from fencesweep.study.sweep import verify as V
 
     rate = run["scenes"] / run["seconds"] if run["seconds"] > 0 else math.inf
     where = "Dask" if run["jobs"] is None else f"{run['jobs']} job{'s' if run['jobs'] != 1 else ''}"
@@ -260,7 +258,7 @@ def _points_line(pts: dict) -> str:
 
 def _adaptive_line(rec: dict) -> str:
     """An adaptive map's cost against the full grid's, and what was inferred."""
-    from fencesweep.study.adaptive_run import per_cycle_note
+    from fencesweep.study.adaptive.run import per_cycle_note
 
     return (f"adaptive map: {per_cycle_note(rec)}; {rec['simulated']} of {rec['design_points']} design points "
             f"simulated, {rec['inferred']} inferred (the points table's `sampled` column says which)")
@@ -282,7 +280,7 @@ def add_design_parser(sub) -> argparse.ArgumentParser:
 
 
 def cmd_design(args: argparse.Namespace) -> int:
-    from fencesweep.study.design import summary_lines
+    from fencesweep.study.design.search import summary_lines
 
     if args.jobs < 1:
         raise UsageError(f"--jobs {args.jobs} is not allowed: --jobs must be >= 1")
@@ -306,7 +304,7 @@ def add_sensitivity_parser(sub) -> argparse.ArgumentParser:
 
 
 def cmd_sensitivity(args: argparse.Namespace) -> int:
-    from fencesweep.study.sensitivity import summary_lines
+    from fencesweep.study.design.sensitivity import summary_lines
 
     if args.jobs is not None and args.jobs < 1:
         raise UsageError(f"--jobs {args.jobs} is not allowed: --jobs must be >= 1")
@@ -335,7 +333,7 @@ def add_plot_design_parser(sub) -> argparse.ArgumentParser:
 
 
 def cmd_plot_design(args: argparse.Namespace) -> int:
-    from fencesweep.report.design_figures import FIGURES, MissingTable, plot
+    from fencesweep.report.design_figures import FIGURES, plot
 
     bad = [w for w in args.what if w not in FIGURES and w != "all"]
     if bad:
@@ -392,7 +390,7 @@ def cmd_plot(args: argparse.Namespace) -> int:
                 print(p)
         if report:
             print(document.write_report(res, args.residual_max))
-    except A.MissingInput as exc:
+    except MissingInput as exc:
         print(f"fencesweep: error: {exc}", file=sys.stderr)
         return 2
     except ImportError as exc:

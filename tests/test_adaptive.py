@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from fencesweep.errors import UsageError
-from fencesweep.study import adaptive as A
-from fencesweep.study import adaptive_loads as AL
-from fencesweep.study import envelope as E
+from fencesweep.study.adaptive import refine as A
+from fencesweep.study.adaptive import loads as AL
+from fencesweep.study.spec import design as DS
 
 
 def _drive(grid: A.Grid, margins_of, rule: A.Rule | None = None) -> A.Refiner:
@@ -94,7 +94,7 @@ def test_loads_run_worst_first_and_stop_at_the_first_broken_constraint():
 
 
 def test_load_margin_is_the_envelope_judge_on_one_load():
-    lim = E.Limits(scraped=True, overload=1.0, deflection_max=None, residual_amplitude=0.02)
+    lim = DS.Limits(scraped=True, overload=1.0, deflection_max=None, residual_amplitude=0.02)
     res = {"outcome": "scraped", "overload": 0.8, "deflection_max": 0.1, "residual_amplitude": 0.005}
     assert AL.load_margin(res, 0.25, lim) == pytest.approx(min(0.2, 0.6, 0.75))
     assert AL.load_margin(dict(res, outcome="escaped"), 0.25, lim) == -1.0
@@ -124,8 +124,8 @@ def small_runs(tmp_path_factory):
 
 def test_adaptive_envelope_agrees_with_its_full_grid(small_runs):
     import fencesweep
-    from fencesweep.study import adaptive_maps as AM
-    from fencesweep.study import adaptive_points as APT
+    from fencesweep.study.adaptive import maps as AM
+    from fencesweep.study.adaptive import points as APT
     from fencesweep.study.api import load_spec
 
     _, full, ad = small_runs
@@ -169,7 +169,7 @@ def test_the_cli_writes_what_the_api_returns(small_runs, capsys):
     import yaml
 
     from fencesweep import cli
-    from fencesweep.study import store
+    from fencesweep.study.store import table as store
 
     tmp, _, ad = small_runs
     spec = tmp / "small.yaml"

@@ -59,7 +59,7 @@ def test_version_is_the_installed_metadata(capsys):
     from importlib import metadata
 
     import fencesweep
-    from fencesweep.study import store
+    from fencesweep.study.store import table as store
 
     version = metadata.version("fencesweep")  # pyproject.toml's, the one place it is written
     with pytest.raises(SystemExit) as done:

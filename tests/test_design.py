@@ -6,10 +6,10 @@ import textwrap
 import pandas as pd
 import pytest
 
-from fencesweep.study import design as D
-from fencesweep.study import design_section
-from fencesweep.study import spec as S
-from fencesweep.study import specfile
+from fencesweep.study.design import search as D
+from fencesweep.study.spec import design as design_section
+from fencesweep.study.spec import spec as S
+from fencesweep.study.spec import file as specfile
 from fencesweep.cli import main
 
 TINY = """

@@ -7,11 +7,17 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from fencesweep.study import envelope as E
-from fencesweep.study import spec as S
-from fencesweep.study import specfile
-from fencesweep.study import plan as PL
-from fencesweep.study import sweep
+from fencesweep.study.spec import envelope as E
+
+from fencesweep.study.spec import design as DS
+
+from fencesweep.study.design import judge as J
+
+from fencesweep.study.design import points as PT
+from fencesweep.study.spec import spec as S
+from fencesweep.study.spec import file as specfile
+from fencesweep.study.sweep import plan as PL
+from fencesweep.study.sweep import pipeline as sweep
 from fencesweep.cli import main
 
 BOX = """
@@ -102,7 +108,7 @@ def test_worst_per_design_point_is_the_max_over_its_loads(tmp_path, capsys):
     pts = pd.read_parquet(tmp_path / "env_points.parquet")
     sp = specfile.load(path)
     assert len(per_load) == 2 * len(sp.envelope.loads) and len(pts) == 2
-    per_load["load"] = E.load_index(per_load, sp.envelope)
+    per_load["load"] = J.load_index(per_load, sp.envelope)
     assert (per_load["load"] >= 0).all()
     for _, p in pts.iterrows():
         mine = per_load[per_load["B2"] == p["B2"]]
@@ -112,7 +118,7 @@ def test_worst_per_design_point_is_the_max_over_its_loads(tmp_path, capsys):
         assert p["share_scraped"] == (mine["outcome"] == "scraped").mean()
         assert p["margin_overload"] == pytest.approx(1 - mine["overload"].max())
         assert p["margin_residual_amplitude"] == pytest.approx(1 - mine["residual_amplitude"].max() / math.radians(1))
-        margins = [p[m] for m in E.MARGINS]
+        margins = [p[m] for m in J.MARGINS]
         assert p["min_margin"] == min(margins) and p["feasible"] == (min(margins) >= 0)
 
 
@@ -121,7 +127,7 @@ def test_summarize_margins_and_binding():
                        "outcome": ["scraped", "escaped", "scraped", "scraped"],
                        "overload": [0.5, 0.9, 1.2, np.nan], "deflection_max": [0.1, 0.2, 0.1, 0.1],
                        "residual_amplitude": [0.0, 0.001, 0.0, 0.0], "dalpha_perm": [0.4] * 4})
-    pts = E.summarize(df, ["B2"], E.Limits()).set_index("B2")
+    pts = J.summarize(df, ["B2"], DS.Limits()).set_index("B2")
     assert pts.loc[1, "share_scraped"] == 0.5 and pts.loc[1, "margin_scraped"] == -0.5
     assert pts.loc[1, "binding"] == "scraped" and not pts.loc[1, "feasible"]
     assert pts.loc[2, "margin_scraped"] == np.inf and pts.loc[2, "worst_overload"] == 1.2
@@ -142,11 +148,11 @@ def test_batches_combine_to_the_one_pass_judgement():
                        "outcome": rng.choice(["scraped", "scraped", "escaped"], n),
                        "overload": rng.random(n) * 1.2, "deflection_max": rng.random(n) * 0.3,
                        "residual_amplitude": rng.random(n) * 0.02, "dalpha_perm": 0.2618})
-    whole = E.summarize(df, ["B2"], E.Limits())
+    whole = J.summarize(df, ["B2"], DS.Limits())
     for cuts in ([5, 23], [1, 2, 3, 39], [17]):  # batches that split design points
         edges = [0, *cuts, n]
-        parts = [E.partial(df.iloc[a:b], ["B2"], E.Limits()) for a, b in zip(edges, edges[1:])]
-        pd.testing.assert_frame_equal(E.finish(E.combine(parts), ["B2"], E.Limits()), whole)
+        parts = [J.partial(df.iloc[a:b], ["B2"], DS.Limits()) for a, b in zip(edges, edges[1:])]
+        pd.testing.assert_frame_equal(J.finish(J.combine(parts), ["B2"], DS.Limits()), whole)
 
 
 def test_cases_that_override_params_tell_the_design_points_apart():
@@ -157,7 +163,7 @@ def test_cases_that_override_params_tell_the_design_points_apart():
           - {B2: 72, K2: 570}
         envelope: {L: [0.2, 0.7], dP: across}
         """)
-    assert E.design_columns(sp) == ["drive", "B2", "K2"]
+    assert PT.design_columns(sp) == ["drive", "B2", "K2"]
     assert len(sp.envelope.loads) == 4 and sp.n_scenes == 2 * 4  # two lengths x the rail and the far edge
     assert sp.resolve(0)["drive"] == "rigid" and sp.resolve(4)["B2"] == 72
 
@@ -165,7 +171,7 @@ def test_cases_that_override_params_tell_the_design_points_apart():
 def test_an_interrupted_envelope_sweep_resumes_and_dask_gives_the_same_table(tmp_path, monkeypatch):
     from pathlib import Path
 
-    from fencesweep.study import store
+    from fencesweep.study.store import table as store
 
     sp = specfile.loads(textwrap.dedent(BOX).replace("sobol: 8", "sobol: 2") + "chunk_size: 5\n")
     ref = sweep.run_sweep(sp, tmp_path / "ref.parquet", jobs=1)

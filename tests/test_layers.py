@@ -12,7 +12,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1] / "fencesweep"
 #: each layer may import itself and the layers before it; the leaves import nothing of the package
 LAYERS = ("leaf", "kernel", "model", "study", "report", "shell")
-LEAVES = {"fencesweep.errors", "fencesweep.resources"}
+LEAVES = {"fencesweep.errors", "fencesweep.resources", "fencesweep.version"}
 MAX_MODULE_LINES, MAX_FUNCTION_LINES = 500, 80
 
 
@@ -52,7 +52,6 @@ def _imports(mod: str) -> set:
         else:
             continue
         out.update(n for n in names if n in SOURCES and n != mod and not mod.startswith(n + "."))
-    out.discard("fencesweep")
     return out
 
 
@@ -102,7 +101,7 @@ def test_layers_import_only_downwards():
 
 
 def test_the_graph_is_read():  # the checks above would pass on an empty graph
-    assert "fencesweep.model.params" in GRAPH["fencesweep.study.spec"]
+    assert "fencesweep.model.params" in GRAPH["fencesweep.study.spec.spec"]
     assert _layer("fencesweep.cli") == "shell" and _layer("fencesweep.errors") == "leaf"
 
 
@@ -117,3 +116,53 @@ def test_functions_are_short_enough_to_read():
             for m, tree in TREES.items() for n in ast.walk(tree)
             if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef)) and n.end_lineno - n.lineno + 1 > MAX_FUNCTION_LINES]
     assert not long, "\n".join(long)
+
+
+#: study/'s wings (fencesweep/study/__init__.py): each imports only itself and the wings before it
+WINGS = ("store", "spec", "sweep", "design", "adaptive")
+
+
+def _wing(mod: str) -> str | None:
+    parts = mod.split(".")
+    return parts[2] if len(parts) > 3 and parts[1] == "study" else None
+
+
+def wing_graph(graph: dict) -> dict:
+    """The wings of study/ and the wings each imports (a module of one importing a module of another)."""
+    out = {w: set() for w in WINGS}
+    for m, ts in graph.items():
+        for t in ts:
+            a, b = _wing(m), _wing(t)
+            if a and b and a != b:
+                out[a].add(b)
+    return out
+
+
+def test_every_study_module_is_in_a_wing():
+    loose = [m for m in SOURCES if m.startswith("fencesweep.study.") and m.count(".") == 2
+             and m != "fencesweep.study.api" and SOURCES[m].name != "__init__.py"]
+    assert not loose, f"study modules outside a wing: {loose}"
+    assert {_wing(m) for m in SOURCES if _wing(m)} == set(WINGS)
+
+
+def test_wings_import_only_the_wings_before_them():
+    graph = wing_graph(GRAPH)
+    assert not circles(graph), f"circles between study's wings: {circles(graph)}"
+    bad = [f"{a} imports {b}" for a, bs in graph.items() for b in bs if WINGS.index(b) > WINGS.index(a)]
+    assert not bad, "\n".join(bad)
+    assert "spec" in graph["sweep"]  # the graph is read
+
+
+@pytest.mark.parametrize("wing", WINGS)
+def test_no_circle_inside_a_wing(wing):
+    sub = {m: {t for t in ts if _wing(t) == wing} for m, ts in GRAPH.items() if _wing(m) == wing}
+    assert len(sub) >= 2 and not circles(sub), circles(sub)
+
+
+def test_errors_live_in_errors_py():
+    """Every exception and warning class of the package is defined in fencesweep/errors.py."""
+    elsewhere = [f"{m}.{n.name}" for m, tree in TREES.items() if m != "fencesweep.errors" for n in ast.walk(tree)
+                 if isinstance(n, ast.ClassDef) and any(
+                     isinstance(b, (ast.Name, ast.Attribute)) and (getattr(b, "id", None) or b.attr).endswith(
+                         ("Error", "Warning", "Exception", "Interrupt", "Interrupted")) for b in n.bases)]
+    assert not elsewhere, f"exception classes outside errors.py: {elsewhere}"

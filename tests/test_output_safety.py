@@ -1,4 +1,4 @@
-"""Nothing lost to a second writer or a full disk (fencesweep/study/lock.py, output.check_writable,
+"""Nothing lost to a second writer or a full disk (fencesweep/study/store/lock.py, output.check_writable,
 store's atomic writes): one run per output at a time (a second refuses, or with --wait waits);
 an output that cannot be written stops the run before it computes; a write that fails (ENOSPC)
 says what was kept, leaves no half-written file and the same command again finishes the table.
@@ -25,8 +25,12 @@ from fencesweep.errors import UsageError, WriteError
 from fencesweep.model import params as P
 from fencesweep.model import results as R
 from fencesweep.model import simulate as model_simulate
-from fencesweep.study import lock, output, specfile, store, sweep
-from fencesweep.study import plan as PL
+from fencesweep.study.store import lock
+from fencesweep.study.sweep import output
+from fencesweep.study.spec import file as specfile
+from fencesweep.study.store import table as store
+from fencesweep.study.sweep import pipeline as sweep
+from fencesweep.study.sweep import plan as PL
 
 cloudpickle.register_pickle_by_value(sys.modules[__name__])
 
@@ -98,7 +102,7 @@ def sweep_process(tmp_path, spec_file: Path, out: Path, gate: Path) -> subproces
     """A process that runs the spec into `out` with `engine`, held at its first run until `gate` exists."""
     job = tmp_path / "job.pickle"
     job.write_bytes(cloudpickle.dumps((str(spec_file), str(out), engine)))
-    code = ("import pickle, sys; from fencesweep.study import specfile, sweep; "
+    code = ("import pickle, sys; from fencesweep.study.spec import file as specfile; from fencesweep.study.sweep import pipeline as sweep; "
             "path, out, engine = pickle.loads(open(sys.argv[1], 'rb').read()); "
             "sweep.run_sweep(specfile.load(path), out, jobs=1, simulate=engine)")
     return subprocess.Popen([sys.executable, "-c", code, str(job)], env=dict(env(), **{GATE: str(gate)}))
@@ -170,7 +174,7 @@ def test_second_run_with_wait_waits_then_finishes(tmp_path, spec_file):
     assert out.read_bytes() == ref.read_bytes()
 
 
-HOLD = ("import sys, time; from pathlib import Path; from fencesweep.study import lock\n"
+HOLD = ("import sys, time; from pathlib import Path; from fencesweep.study.store import lock\n"
         "with lock.one_writer(Path(sys.argv[1])):\n"
         "    while not Path(sys.argv[2]).exists():\n"
         "        time.sleep(0.01)\n")

@@ -20,7 +20,7 @@ from fencesweep.report import analysis as RP
 from fencesweep.report import document as DOC
 from fencesweep.report import fig5a_text as F5A
 from fencesweep.report import maps_text as MT
-from fencesweep.study import store
+from fencesweep.study.store import table as store
 
 pytest.importorskip("matplotlib")
 

@@ -7,10 +7,10 @@ import textwrap
 import pandas as pd
 import pytest
 
-from fencesweep.study import design as D
+from fencesweep.study.design import search as D
 from fencesweep.report import design_text as R
-from fencesweep.study import specfile
-from fencesweep.study import sweep
+from fencesweep.study.spec import file as specfile
+from fencesweep.study.sweep import pipeline as sweep
 
 SPEC = """
     params: {drive: flexible}
@@ -39,12 +39,12 @@ SWING = """
 
 @pytest.fixture(scope="module")
 def res(tmp_path_factory):
-    from fencesweep.study import envelope as E
+    from fencesweep.study.design import points as PT
 
     res = tmp_path_factory.mktemp("results")
     sp = specfile.loads(textwrap.dedent(SPEC))
     sweep.run_sweep(sp, res / "envelope.parquet", jobs=1)
-    E.write_points(sp, res / "envelope.parquet")
+    PT.write_points(sp, res / "envelope.parquet")
     D.run_design(sp, out_dir=res / "design")
     sweep.run_sweep(specfile.loads(textwrap.dedent(SWING)), res / "swing.parquet", jobs=1)
     return res

@@ -4,9 +4,9 @@ import textwrap
 import pandas as pd
 import pytest
 
-from fencesweep.study import spec as S
+from fencesweep.study.spec import spec as S
 
-from fencesweep.study import specfile
+from fencesweep.study.spec import file as specfile
 
 SA_SPEC = """
     params: {drive: flexible, B2: 140, K2: 2075}
@@ -46,8 +46,8 @@ def test_bad_sensitivity_sections_are_rejected(change, words):
 
 def test_indices_from_the_sample_judged_over_the_envelope(tmp_path):
     pytest.importorskip("SALib")
-    from fencesweep.study import envelope as E
-    from fencesweep.study import sensitivity as SA
+    from fencesweep.study.design import points as PT
+    from fencesweep.study.design import sensitivity as SA
 
     sp = load(SA_SPEC)
     out = tmp_path / "sa.parquet"
@@ -55,7 +55,7 @@ def test_indices_from_the_sample_judged_over_the_envelope(tmp_path):
     assert set(df["input"]) == {"k1", "mu2"} and set(df["output"]) == {"worst_overload", "worst_deflection_max"}
     runs = pd.read_parquet(tmp_path / "sa_runs.parquet")
     assert len(runs) == 4 * (2 + 2) * len(sp.envelope.loads)  # Saltelli: n (d + 2) points, each over the loads
-    pts = pd.read_parquet(E.points_path(tmp_path / "sa_runs.parquet"))
+    pts = pd.read_parquet(PT.points_path(tmp_path / "sa_runs.parquet"))
     worst = runs.groupby(["k1", "mu2"])["overload"].max()
     for _, p in pts.iterrows():
         assert p["worst_overload"] == worst.loc[(p["k1"], p["mu2"])]

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from fencesweep.model import params as P
-from fencesweep.study import spec as S
-from fencesweep.study import specfile
+from fencesweep.study.spec import spec as S
+from fencesweep.study.spec import file as specfile
 
 
 def load(text: str) -> S.Spec:
@@ -219,7 +219,7 @@ def test_bad_spec_is_rejected_with_key_value_and_allowed(text, parts):
 
 
 def test_spec_error_message_names_the_parameter_for_an_invalid_start():
-    from fencesweep.study import plan as PL
+    from fencesweep.study.sweep import plan as PL
 
     sp = load("grid: {dP: [0, 0.5, 0.7]}")  # long default load: 0.7 + 0.1 > P_max
     with pytest.raises(S.SpecError) as info:
@@ -229,7 +229,7 @@ def test_spec_error_message_names_the_parameter_for_an_invalid_start():
 
 
 def test_psi_giving_K2_out_of_range_is_reported_up_front():
-    from fencesweep.study import plan as PL
+    from fencesweep.study.sweep import plan as PL
 
     sp = load("params: {Psi: 0.01}\ngrid: {B2: [10, 1000]}")
     with pytest.raises(S.SpecError) as info:
@@ -239,7 +239,7 @@ def test_psi_giving_K2_out_of_range_is_reported_up_front():
 
 
 def test_invalid_skip_drops_bad_starts_and_reports_them():
-    from fencesweep.study import plan as PL
+    from fencesweep.study.sweep import plan as PL
 
     sp = load("""
         invalid: skip

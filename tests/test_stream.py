@@ -183,8 +183,9 @@ grid:
 
 
 def test_a_stream_sweep_writes_one_row_per_cycle_with_its_stream_results(tmp_path):
-    from fencesweep.study import specfile
-    from fencesweep.study import store, sweep
+    from fencesweep.study.spec import file as specfile
+    from fencesweep.study.store import table as store
+    from fencesweep.study.sweep import pipeline as sweep
 
     sweep.run_sweep(specfile.loads(STREAM_SPEC), tmp_path / "s.parquet", jobs=1, progress=False)
     df = store.read_table(tmp_path / "s.parquet")
@@ -207,8 +208,8 @@ def test_a_stream_sweep_writes_one_row_per_cycle_with_its_stream_results(tmp_pat
     ("scene: stream\nloads: small_far\n", ["loads = 'small_far'", "non-empty list"]),
 ])
 def test_a_bad_loads_list_in_a_spec_is_refused(text, words):
-    from fencesweep.study import spec as S
-    from fencesweep.study import specfile
+    from fencesweep.study.spec import spec as S
+    from fencesweep.study.spec import file as specfile
 
     with pytest.raises(S.SpecError) as err:
         specfile.loads(text)
@@ -220,7 +221,7 @@ def test_cli_prints_the_cycles_and_the_summary_and_writes_the_whole_series(tmp_p
     import json
 
     from fencesweep import cli
-    from fencesweep.study.store import read_trajectory
+    from fencesweep.study.store.table import read_trajectory
 
     path = tmp_path / "t.parquet"
     assert cli.main(["run", "--scene", "stream", "--loads", "small_far,long_near", "--set", "period=2",

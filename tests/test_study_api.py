@@ -12,8 +12,10 @@ import fencesweep
 from fencesweep import cli, resources
 from fencesweep.errors import UsageError
 from fencesweep.model import simulate as model_simulate
-from fencesweep.study import api, estimate, verify_sample
-from fencesweep.study import spec as S
+from fencesweep.study import api
+from fencesweep.study.sweep import estimate
+from fencesweep.study.sweep import sample as verify_sample
+from fencesweep.study.spec import spec as S
 
 #: 3 x 3 B2 x K2 over both named cases: 18 cycles of the real engine
 SPEC = """
@@ -52,7 +54,7 @@ def test_grid_returns_the_table_the_cli_writes(tmp_path):
     assert len(df) == 18 and (df["status"] == "ok").all()
     assert df.attrs["units"]["B2"] == "N m s/rad" and df.attrs["units"]["peak_force"] == "N"
     meta = df.attrs["fencesweep"]
-    assert meta["spec_hash"] == fencesweep.study.specfile.load(path).hash and meta["counts"]["scenes"] == 18
+    assert meta["spec_hash"] == fencesweep.study.spec.file.load(path).hash and meta["counts"]["scenes"] == 18
     run = df.attrs["run"]
     assert run["out"] == str(tmp_path / "api.parquet") and run["scenes"] == run["model_runs"] == 18
     assert run["chunks_computed"] == run["chunks"] and run["chunks_reused"] == 0
@@ -168,7 +170,7 @@ def fake_engine(vals, trajectory=False):
 
 
 def test_an_interrupted_grid_says_what_is_saved_and_resumes(tmp_path, monkeypatch):
-    from fencesweep.study import store
+    from fencesweep.study.store import table as store
 
     monkeypatch.setattr(model_simulate, "simulate_resolved", fake_engine)
     path = write(tmp_path, SPEC + "    chunk_size: 3\n")

@@ -21,13 +21,19 @@ import pytest
 
 from fencesweep.model import simulate as api
 from fencesweep import cli
-from fencesweep.study import assemble, chunks, compute, output, runs, store, sweep
-from fencesweep.study import plan as PL
-from fencesweep.study import verify as V
+from fencesweep.study.sweep import assemble
+from fencesweep.study.sweep import chunks
+from fencesweep.study.sweep import compute
+from fencesweep.study.sweep import output
+from fencesweep.study.sweep import runs
+from fencesweep.study.store import table as store
+from fencesweep.study.sweep import pipeline as sweep
+from fencesweep.study.sweep import plan as PL
+from fencesweep.study.sweep import verify as V
 from fencesweep.model import params as P
 from fencesweep.model import results as R
-from fencesweep.study import spec as S
-from fencesweep.study import specfile
+from fencesweep.study.spec import spec as S
+from fencesweep.study.spec import file as specfile
 from fencesweep import resources
 from fencesweep.errors import UsageError
 
@@ -353,7 +359,7 @@ def test_chunks_start_with_the_most_work():
 def test_progress_bar_off_shows_nothing_and_imports_no_tqdm():
     """An off bar (a planning pass under 20 000 scenes, --quiet) takes a bar's calls without
     importing tqdm (~35 ms of the planning helper the parent waits for); an on bar is tqdm's."""
-    code = ("import sys; from fencesweep.study import progress as P; b = P.bar(5, 'x', False); b.update(2); "
+    code = ("import sys; from fencesweep.study.sweep import progress as P; b = P.bar(5, 'x', False); b.update(2); "
             "b.total += 1; b.close(); assert 'tqdm' not in sys.modules, 'tqdm imported'; "
             "on = P.bar(5, 'x', True); on.close(); print(type(on).__module__)")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
@@ -386,7 +392,7 @@ def sweep_to_kill(tmp_path, out: Path, **kw) -> list:
     engine goes to it pickled by value (this module is registered with cloudpickle)."""
     job = tmp_path / "job.pickle"
     job.write_bytes(cloudpickle.dumps((spec(), str(out), dict(kw, simulate=slow_engine))))
-    code = ("import pickle, sys; from fencesweep.study import sweep; "
+    code = ("import pickle, sys; from fencesweep.study.sweep import pipeline as sweep; "
             "spec, out, kw = pickle.loads(open(sys.argv[1], 'rb').read()); sweep.run_sweep(spec, out, **kw)")
     return [sys.executable, "-c", code, str(job)]
 
@@ -727,7 +733,7 @@ def test_a_cycle_sweep_never_imports_pandas(tmp_path):
         chunk_size: 2
     """))
     out = tmp_path / "s.parquet"
-    code = (f"import sys\nfrom fencesweep.study import specfile, sweep\n"
+    code = (f"import sys\nfrom fencesweep.study.spec import file as specfile\nfrom fencesweep.study.sweep import pipeline as sweep\n"
             f"sweep.run_sweep(specfile.load({str(spec_path)!r}), {str(out)!r}, jobs=1)\n"
             f"print('pandas' in sys.modules)")
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)

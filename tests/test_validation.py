@@ -27,8 +27,8 @@ import pandas as pd
 import pytest
 
 import fencesweep
-from fencesweep.study import accuracy
-from fencesweep.study.accuracy import ANGLE_FLOOR, ENGINE_TARGET, FORCE_FLOOR, TIME_FLOOR  # noqa: F401
+from fencesweep.study.sweep import accuracy
+from fencesweep.study.sweep.accuracy import ANGLE_FLOOR, ENGINE_TARGET, FORCE_FLOOR, TIME_FLOOR  # noqa: F401
 
 #: Relative error allowed in peak_force, deflection_max and t_exit.  MODEL.md asks two
 #: independent implementations to agree to 1e-3 (accuracy.AGREEMENT); the engine's default
@@ -36,7 +36,7 @@ from fencesweep.study.accuracy import ANGLE_FLOOR, ENGINE_TARGET, FORCE_FLOOR, T
 #: the bound: its CSV (rtol 1e-10) and a rerun at rtol 1e-11 differ by at most 1.3e-9 in
 #: these three measures (with the floors below) over the 103 scenes checked.
 ERR_BOUND = ENGINE_TARGET
-# The floors of the scales (fencesweep/study/accuracy.py, shared with a sweep's verification):
+# The floors of the scales (fencesweep/study/sweep/accuracy.py, shared with a sweep's verification):
 # forces against max(|ref|, FORCE_FLOOR x the scene's freefall_force), angles against
 # max(|ref|, ANGLE_FLOOR), times against max(|ref|, TIME_FLOOR); imported here under their
 # names, which the benchmarks read from this module.

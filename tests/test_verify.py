@@ -1,4 +1,4 @@
-"""Every table checks itself (fencesweep/study/verify.py): a sample of its runs, the extremes
+"""Every table checks itself (fencesweep/study/sweep/verify.py): a sample of its runs, the extremes
 first, re-run at tol / 10 and compared; the record in the table's metadata (`fencesweep.verify`),
 the API's attrs and the command's summary; --verify N, --no-verify; the same record whatever
 --jobs and after a resume.
@@ -19,10 +19,14 @@ from fencesweep import cli
 from fencesweep.model import params as P
 from fencesweep.model import results as R
 from fencesweep.model import simulate as model_simulate
-from fencesweep.study import accuracy, compute, specfile, store, sweep
-from fencesweep.study import plan as PL
-from fencesweep.study import verify as V
-from fencesweep.study import verify_sample as VS
+from fencesweep.study.sweep import accuracy
+from fencesweep.study.sweep import compute
+from fencesweep.study.spec import file as specfile
+from fencesweep.study.store import table as store
+from fencesweep.study.sweep import pipeline as sweep
+from fencesweep.study.sweep import plan as PL
+from fencesweep.study.sweep import verify as V
+from fencesweep.study.sweep import sample as VS
 
 #: flexible only, every scene its own run: 2 cases x 20 x 20 = 800 runs (a default sample of 16)
 SPEC = """

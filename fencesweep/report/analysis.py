@@ -17,6 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
+from fencesweep.errors import MissingInput
+
 # pandas is imported inside the functions that use it: the CLI's parser imports this module (for
 # `plot`'s options), and every command paid pandas' import (0.2 s) before it did anything.
 
@@ -71,10 +73,6 @@ STAGE_NAMES = {0: "S1", 1: "S2", 2: "S3", 3: "S4", 4: "rail", -1: "exit"}
 RESIDUAL_MAX_DEG = 1.0
 
 
-class MissingInput(FileNotFoundError):
-    """A table or trajectory the figures need is not there; the message says how to make it."""
-
-
 # ---------------------------------------------------------------------------- inputs
 def table_path(res: Path, name: str) -> Path:
     return Path(res) / f"{name}.parquet"
@@ -86,7 +84,7 @@ def traj_path(res: Path, name: str) -> Path:
 
 def read_table(res: Path, name: str):
     """A sweep table of TABLES (pandas, with attrs from store.read_table)."""
-    from fencesweep.study import store
+    from fencesweep.study.store import table as store
 
     path = table_path(res, name)
     if not path.exists():
@@ -97,7 +95,7 @@ def read_table(res: Path, name: str):
 
 def read_traj(res: Path, name: str):
     """A trajectory of TRAJECTORIES; df.attrs['params'] and ['results'] hold the run's inputs and results."""
-    from fencesweep.study import store
+    from fencesweep.study.store import table as store
 
     path = traj_path(res, name)
     if not path.exists():
@@ -139,7 +137,7 @@ def make_trajectories(res: Path, names=None, residual_max_deg: float = RESIDUAL_
     """Run the cycles of TRAJECTORIES (and of design_runs and worst_runs, when their tables are there)
     through the engine and write <res>/traj/<name>.parquet."""
     from fencesweep.model import simulate as api, params
-    from fencesweep.study import store
+    from fencesweep.study.store import table as store
 
     out = []
     runs = {**TRAJECTORIES, **design_runs(res, residual_max_deg), **worst_runs(res)}

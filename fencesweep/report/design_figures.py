@@ -10,9 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-
-class MissingTable(FileNotFoundError):
-    """A table a figure needs is not there: names it and the command that makes it."""
+from fencesweep.errors import MissingTable
 
 
 def _plt():

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fencesweep.study import envelope as E
+from fencesweep.study.spec import envelope as E
 
 
 def _deg(x: float) -> str:
@@ -227,7 +227,7 @@ def _window(res: Path) -> list:
 def _sensitivity(res: Path) -> list:
     import pandas as pd
 
-    from fencesweep.study import store
+    from fencesweep.study.store import table as store
 
     df = pd.read_parquet(res / "sensitivity.parquet")
     meta = store.read_metadata(res / "sensitivity.parquet")
@@ -273,7 +273,7 @@ def _tolerance(res: Path) -> list:
 
     pts = pd.read_parquet(res / "tolerance_points.parquet")
     per = pd.read_parquet(res / "tolerance.parquet", columns=["R_s", "phi0", "outcome"])
-    from fencesweep.study.store import read_metadata
+    from fencesweep.study.store.table import read_metadata
 
     meta_env = read_metadata(res / "tolerance_points.parquet")["envelope"]["dims"]
     rs, ph = meta_env["R_s"], meta_env["phi0"]

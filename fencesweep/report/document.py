@@ -21,7 +21,7 @@ from fencesweep.report.stream_text import stream_section
 
 # ---------------------------------------------------------------------------- the report
 def _provenance(res: Path) -> str:
-    from fencesweep.study import store
+    from fencesweep.study.store import table as store
 
     for name in TABLES:
         p = table_path(res, name)

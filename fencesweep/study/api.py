@@ -25,46 +25,24 @@ import os
 from pathlib import Path
 from typing import Any, Callable
 
-from fencesweep.errors import UsageError, WriteError
-from fencesweep.study import envelope as E
-from fencesweep.study import lock, output, specfile, store, sweep
-from fencesweep.study import verify as V
-from fencesweep.study import spec as S
-from fencesweep.study.estimate import Estimate
-from fencesweep.study.estimate import estimate as _estimate
+from fencesweep.errors import SweepInterrupted, SweepWriteError, UsageError, WriteError
+from fencesweep.study.spec import envelope as E
+from fencesweep.study.design import points as PT
+from fencesweep.study.store import lock
+from fencesweep.study.sweep import output
+from fencesweep.study.spec import file as specfile
+from fencesweep.study.store import table as store
+from fencesweep.study.sweep import pipeline as sweep
+from fencesweep.study.sweep import verify as V
+from fencesweep.study.spec import spec as S
+from fencesweep.study.sweep.estimate import Estimate
+from fencesweep.study.sweep.estimate import estimate as _estimate
 
 __all__ = ["grid", "run_grid", "points", "estimate", "design", "sensitivity", "load_spec", "SweepInterrupted",
            "SweepWriteError"]
 
 BACKENDS = ("loky", "dask")
 
-
-class SweepWriteError(WriteError):
-    """A file of the sweep could not be written (`errno` ENOSPC: the disk is full): names the file
-    and the `saved` chunks (of `total`, None: not known) kept in `work` for the next run."""
-
-    def __init__(self, exc: WriteError, work: Path, saved: int, total: int | None):
-        super().__init__(exc.errno, exc.strerror, exc.filename)
-        self.work, self.saved, self.total = work, saved, total
-
-    def __reduce__(self):
-        return (type(self), (WriteError(self.errno, self.strerror, self.filename), self.work, self.saved, self.total))
-
-    def __str__(self) -> str:
-        kept = (f"the {self.saved} finished chunk{'s' if self.saved != 1 else ''} are kept in {self.work}"
-                if self.saved else "no chunk was finished yet")
-        kept = kept.replace("chunk are", "chunk is")
-        todo = "free space" if self.no_space else "make it writable"
-        return f"{super().__str__()}; {kept} — {todo} and run the same command again"
-
-
-class SweepInterrupted(KeyboardInterrupt):
-    """Ctrl-C during a sweep: `saved` of `total` chunks (None: not known) are saved in `work`."""
-
-    def __init__(self, work: Path, saved: int, total: int | None):
-        self.work, self.saved, self.total = work, saved, total
-        self.saved_text = f"interrupted; {saved}{f' of {total}' if total else ''} chunks are saved in {work}"
-        super().__init__(f"{self.saved_text}; the same call again (same spec and out) computes only the rest")
 
 
 def _nothing(msg: str) -> None:
@@ -80,7 +58,7 @@ def load_spec(spec: Any) -> S.Spec:
     if isinstance(spec, dict):
         return specfile.parse(spec, source=_yaml_text(spec))
     raise TypeError(f"spec must be the path of a YAML spec, a dict (the spec's parsed YAML) or a "
-                    f"fencesweep.study.spec.Spec, not {type(spec).__name__}")
+                    f"fencesweep.study.spec.spec.Spec, not {type(spec).__name__}")
 
 
 def _yaml_text(data: dict) -> str:
@@ -139,13 +117,13 @@ def grid(spec: Any, *, out: str | Path | None = None, jobs: int | None = None, r
     `jobs`: local worker processes (None: all cores); `backend` "dask" runs on the cluster at
     `scheduler`. `resume`: reuse the chunks an interrupted run of the same spec saved. Without
     `overwrite`, another spec's table or unfinished run at `out` stops the sweep before it starts.
-    `verify`: None, a sample of the runs is run again at tol / 10 and compared (verify.py); N:
+    `verify`: None, a sample of the runs is run again at tol / 10 and compared (sweep/verify.py); N:
     N runs; False: none. `wait`: wait for another run writing `out` instead of raising UsageError.
     df.attrs: "units" ({column: unit}), "fencesweep" (the provenance: spec, hash, versions,
     counts, "verify" the verification's record), "run" (run_grid's record) and, for a spec with
     an envelope, "points_path" (the per-design-point table: points(df) reads it).
 
-    `adaptive`: an adaptive map instead of the full grid (adaptive_run.py; an envelope study or
+    `adaptive`: an adaptive map instead of the full grid (adaptive/run.py; an envelope study or
     a grid with cases): the table has one row per cycle run, the points table (points(df)) every
     design point of the full grid with `sampled`; default out SPEC-output_adaptive.parquet."""
     run = run_grid(spec, out=out, jobs=jobs, resume=resume, progress=progress, backend=backend,
@@ -216,7 +194,7 @@ def _saying_what_is_saved(saved: Callable[[], tuple]):
 
 def _run_adaptive(sp: S.Spec, out, jobs, resume, backend, scheduler, progress, overwrite, verify, wait, log) -> dict:
     """run_grid of an adaptive map (adaptive_run.run_adaptive): the same record, and "adaptive"."""
-    from fencesweep.study import adaptive_run as AR
+    from fencesweep.study.adaptive import run as AR
 
     out = Path(out) if out is not None else AR.default_output(sp)
     _note_skipped_loads(sp, log)
@@ -239,11 +217,11 @@ def _plain(value: Any) -> Any:
 
 def _write_points(spec: S.Spec, table: Path) -> dict:
     """Write an envelope sweep's per-design-point table; a summary of it."""
-    path, pts = E.write_points(spec, table)
+    path, pts = PT.write_points(spec, table)
     best = pts.loc[pts["min_margin"].idxmax()]
     return {"path": str(path), "design_points": len(pts), "loads": len(spec.envelope.loads),
             "feasible": int(pts["feasible"].sum()), "min_margin": float(best["min_margin"]),
-            "binding": str(best["binding"]), "best": {c: _plain(best[c]) for c in E.design_columns(spec)}}
+            "binding": str(best["binding"]), "best": {c: _plain(best[c]) for c in PT.design_columns(spec)}}
 
 
 def points(table: Any):
@@ -251,7 +229,7 @@ def points(table: Any):
     DataFrame: of a table that grid returned (its attrs["points_path"]), or of the per-load
     table's path (OUT.parquet -> OUT_points.parquet)."""
     if isinstance(table, (str, os.PathLike)):
-        path = E.points_path(table)
+        path = PT.points_path(table)
     else:
         path = getattr(table, "attrs", {}).get("points_path")
         if path is None:
@@ -290,7 +268,7 @@ def design(spec: Any, *, out: str | Path | None = None, jobs: int = 1, progress:
     every constraint for every load of its envelope, verify it on a fresh sample and write
     OUT/recommended.json, comparison.parquet and verify_loads.parquet (OUT: default the design
     section's output). Returns the recommendation (recommended.json's content)."""
-    from fencesweep.study import design as D
+    from fencesweep.study.design import search as D
 
     log = log or _nothing
     _check_jobs(jobs, none_ok=False)
@@ -307,7 +285,7 @@ def sensitivity(spec: Any, *, out: str | Path | None = None, jobs: int | None = 
     """`fencesweep sensitivity`: the Sobol indices (S1, ST) of the spec's sensitivity: outputs to its
     assumed inputs; runs the sample as a sweep (OUT_runs.parquet, OUT_runs_points.parquet) and
     writes the indices to OUT (default: the section's output). Returns them as a DataFrame."""
-    from fencesweep.study import sensitivity as SA
+    from fencesweep.study.design import sensitivity as SA
 
     _check_jobs(jobs)
     _check_out(out)

@@ -1,0 +1,477 @@
+"""Parquet out and in: sweep tables with their provenance, resumable chunks, trajectories.
+
+A sweep table is one Parquet file, one row per scene: `scene`, `case`, every parameter of
+docs/model.md §12 (step_factor included), the derived input `Psi`, then every result of the
+scene (docs/model.md §11 for `cycle`, §8 for `impact` and `freefall`) under its name there.
+Each column carries `unit`, `doc` and `role` (label / parameter / result) in its field
+metadata; the schema metadata records how the file was made (`fencesweep.spec`, its
+`fencesweep.spec_hash`, `fencesweep.versions`, ...; every value JSON-encoded). Nothing in it depends on the number of
+workers or the time of day, so a sweep writes the same bytes whatever `--jobs` is.
+
+Every file is written atomically: to a temporary file in the same directory, then
+`os.replace`d over the target, so a killed process leaves either the old file or the new
+(tables and trajectories are fsync'd first; chunks are checked when reused instead).
+"""
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+import math
+import os
+import platform
+from pathlib import Path
+from typing import Iterable
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from fencesweep.errors import write_error
+from fencesweep.model import params as P
+from fencesweep.model import results as R
+
+COMPRESSION = "zstd"
+META_PREFIX = "fencesweep."
+#: label columns before the parameters
+LABELS = (("scene", "-", "scene: cycle / impact / freefall (docs/model.md §8)"),
+          ("case", "-", "named case of docs/model.md §12 the scene starts from (null: none)"))
+DERIVED = (("Psi", "-", "relative damping B2 / (2 sqrt(K2 I2)) (docs/model.md §3; NaN when K2 I2 = 0)"),)
+
+_INT = getattr(R, "_INT_RESULTS", {"n_impacts", "n_steps"})
+_BOOL = getattr(R, "_BOOL_RESULTS", {"safe", "deflection_ok"})
+_STR = {"outcome", "status"}
+
+
+# ---------------------------------------------------------------------------- provenance
+def source_hash() -> str:
+    """sha256 over the package's Python sources: a changed engine never reuses old chunks."""
+    h = hashlib.sha256()
+    root = Path(__file__).resolve().parents[1]  # the package
+    for f in sorted(root.rglob("*.py")):
+        h.update(f.relative_to(root).as_posix().encode() + b"\0" + f.read_bytes() + b"\0")
+    return h.hexdigest()
+
+
+def versions() -> dict:
+    """Versions that a table records (fencesweep, its source hash, numba, numpy, pyarrow, python)."""
+    from importlib import metadata
+
+    from fencesweep.version import __version__
+
+    try:  # from the installed metadata: importing numba here would cost a quarter second
+        numba_version = metadata.version("numba")
+    except metadata.PackageNotFoundError:  # pragma: no cover
+        numba_version = None
+    return {"fencesweep": __version__, "source_hash": source_hash(), "numba": numba_version,
+            "numpy": np.__version__, "pyarrow": pa.__version__, "python": platform.python_version()}
+
+
+def _meta_bytes(meta: dict) -> dict:
+    out = {}
+    for k, v in meta.items():  # every value is JSON (strings too), so reading is uniform
+        text = json.dumps(v, sort_keys=True, default=_json_default)
+        out[(META_PREFIX + k).encode()] = text.encode()
+    return out
+
+
+def _json_default(x):
+    if isinstance(x, np.generic):
+        return x.item()
+    raise TypeError(f"not JSON serialisable: {type(x).__name__}")
+
+
+#: Arrow types built from, and read into, NumPy buffers directly (arrow_array, numpy_column)
+_NUMPY_OF = {pa.float64(): np.float64, pa.int64(): np.int64}
+
+
+def arrow_array(values, typ: pa.DataType) -> pa.Array:
+    """`values` (a sequence or NumPy array) as an Arrow array of type `typ`, made from NumPy
+    buffers (pa.Array.from_buffers) for float64 (None a null), int64, bool and string values.
+
+    pa.array would do the same, but its first call in a process imports pandas (0.2 s,
+    measured), which a sweep's workers and its planning never need: with this, the main job's
+    processes never import it. Other types and other values go through pa.array."""
+    if isinstance(values, (pa.Array, pa.ChunkedArray)):
+        return values if values.type == typ else values.cast(typ)
+    n = len(values)
+    if typ == pa.bool_():
+        arr = np.asarray(values)
+        if arr.dtype.kind == "b":
+            return pa.Array.from_buffers(typ, n, [None, pa.py_buffer(np.packbits(arr, bitorder="little"))])
+    elif typ in _NUMPY_OF and n:
+        arr, valid = _with_nulls(values) if typ == pa.float64() else (np.asarray(values), None)
+        if arr.dtype.kind in ("iu" if typ == pa.int64() else "fiu"):
+            data = pa.py_buffer(np.ascontiguousarray(arr, _NUMPY_OF[typ]))
+            return pa.Array.from_buffers(typ, n, [valid, data], null_count=-1 if valid else 0)
+    elif typ == pa.string() and all(isinstance(v, str) for v in values):
+        data = [v.encode() for v in values]
+        offsets = np.zeros(n + 1, np.int32)
+        np.cumsum([len(b) for b in data], out=offsets[1:])
+        return pa.Array.from_buffers(typ, n, [None, pa.py_buffer(offsets), pa.py_buffer(b"".join(data))])
+    return pa.array(values, type=typ)
+
+
+def _with_nulls(values) -> tuple:
+    """(float values as a NumPy array, Arrow validity bitmap or None): None is a null (a
+    parameter a scene leaves unset); values that are not all numbers come back as an object
+    array, for pa.array to take."""
+    arr = np.asarray(values)
+    if arr.dtype != object:
+        return arr, None
+    missing = np.array([v is None for v in values], dtype=bool)
+    if not all(isinstance(v, (float, int)) for v, m in zip(values, missing) if not m):
+        return arr, None
+    valid = pa.py_buffer(np.packbits(~missing, bitorder="little")) if missing.any() else None
+    return np.where(missing, 0.0, arr).astype(np.float64), valid
+
+
+def numpy_column(col) -> np.ndarray:
+    """An Arrow column (Array or ChunkedArray) as a NumPy array (strings as an object array),
+    read from its buffers for the types arrow_array makes (see there: to_numpy's first call
+    imports pandas); other types, and columns with nulls, through to_numpy."""
+    chunks = col.chunks if isinstance(col, pa.ChunkedArray) else [col]
+    parts = [_numpy_chunk(c) for c in chunks]
+    if len(parts) == 1:
+        return parts[0]
+    if not parts:
+        return np.empty(0, _NUMPY_OF.get(col.type, bool if col.type == pa.bool_() else object))
+    return np.concatenate(parts)
+
+
+def _numpy_chunk(arr: pa.Array) -> np.ndarray:
+    n, off = len(arr), arr.offset
+    if n and arr.null_count == 0 and arr.type in _NUMPY_OF:
+        dt = np.dtype(_NUMPY_OF[arr.type])
+        return np.frombuffer(arr.buffers()[1], dt, count=n, offset=off * dt.itemsize)
+    if n and arr.null_count == 0 and arr.type == pa.bool_():
+        bits = np.frombuffer(arr.buffers()[1], np.uint8)
+        return np.unpackbits(bits, count=off + n, bitorder="little")[off:].astype(bool)
+    if arr.null_count == 0 and arr.type == pa.string():
+        return np.array(arr.to_pylist(), dtype=object)
+    return arr.to_numpy(zero_copy_only=False)
+
+
+# ---------------------------------------------------------------------------- schema
+def _field(name: str, typ: pa.DataType, unit: str, doc: str, role: str) -> pa.Field:
+    return pa.field(name, typ, nullable=True,
+                    metadata={b"unit": unit.encode(), b"doc": doc.encode(), b"role": role.encode()})
+
+
+def result_type(name: str) -> pa.DataType:
+    if name in _STR:
+        return pa.string()
+    if name in _INT:
+        return pa.int64()
+    if name in _BOOL:
+        return pa.bool_()
+    return pa.float64()
+
+
+#: a stream sweep's row is one cycle of one stream (docs/model.md §14): its index, then the cycle's
+#: results, then the results of its stream (n_cycles is a parameter column already)
+CYCLE_INDEX = ("cycle", "-", "index k of the work cycle in its stream (stream scene; it starts at t_k = k period)")
+STREAM_LEVEL = tuple(r for r in R.STREAM_RESULTS if r[0] != "n_cycles")
+
+
+def result_schema(scene: str) -> pa.Schema:
+    """The result columns of a chunk: one row per model run. A stream's run holds a list per
+    cycle result (its cycles in order) and its stream results."""
+    if scene == "stream":
+        return pa.schema([_field(n, pa.list_(result_type(n)), u, d, "result") for n, u, d in R.STREAM_CYCLE_RESULTS]
+                         + [_field(n, result_type(n), u, d, "result") for n, u, d in STREAM_LEVEL])
+    return pa.schema([_field(n, result_type(n), u, d, "result") for n, u, d in R.SCENE_RESULTS[scene]])
+
+
+def table_result_fields(scene: str) -> list:
+    """The result columns of a sweep table (for `stream`: the cycle index, the cycle's results
+    and its stream's, one row per cycle)."""
+    if scene != "stream":
+        return list(result_schema(scene))
+    rows = (CYCLE_INDEX,) + R.STREAM_CYCLE_RESULTS + STREAM_LEVEL
+    return [_field(n, pa.int64() if n == "cycle" else result_type(n), u, d, "result") for n, u, d in rows]
+
+
+def stream_row(res: dict) -> dict:
+    """A stream's results (api: the stream's plus its "cycles" DataFrame) as one chunk row."""
+    cycles = res["cycles"]
+    row = {n: cycles[n].tolist() for n, _, _ in R.STREAM_CYCLE_RESULTS}
+    row.update({n: res[n] for n, _, _ in STREAM_LEVEL})
+    return row
+
+
+def param_columns() -> list:
+    """(name, arrow type) of the label, parameter and derived columns, in table order."""
+    cols = [(n, pa.string()) for n, _, _ in LABELS]
+    cols += [(p.name, pa.string() if p.kind == "choice" else pa.float64()) for p in P.TABLE]
+    cols += [(n, pa.float64()) for n, _, _ in DERIVED]
+    return cols
+
+
+def param_table(columns: dict) -> pa.Table:
+    """The label, parameter and derived columns of a block of scenes ({name: list}) as a table."""
+    return pa.table({name: arrow_array(columns[name], typ) for name, typ in param_columns()})
+
+
+def read_param_table(path: str | Path) -> pa.Table | None:
+    """A table written by param_table, as written (None if it is missing or damaged)."""
+    try:
+        table = pq.ParquetFile(path).read()  # (pq.read_table imports pandas)
+    except (OSError, pa.ArrowInvalid):
+        return None
+    if table.column_names != [name for name, _ in param_columns()]:
+        return None
+    return table.combine_chunks()
+
+
+def table_schema(scene: str, meta: dict | None = None) -> pa.Schema:
+    """The schema of a sweep table of `scene`: labels, parameters, Psi, results; units in metadata."""
+    fields = [_field(n, pa.string(), u, d, "label") for n, u, d in LABELS]
+    fields += [_field(p.name, pa.string() if p.kind == "choice" else pa.float64(), p.unit, p.doc, "parameter")
+               for p in P.TABLE]
+    fields += [_field(n, pa.float64(), u, d, "parameter") for n, u, d in DERIVED]
+    fields += table_result_fields(scene)
+    names = [f.name for f in fields]
+    assert len(set(names)) == len(names), "a result shares a parameter's name"
+    return pa.schema(fields, metadata=_meta_bytes(meta) if meta else None)
+
+
+def failed_result(scene: str, reason: str) -> dict:
+    """The row of a run that raised instead of returning: outcome failed, NaN numbers."""
+    out = {}
+    for name, _, _ in R.SCENE_RESULTS[scene]:
+        if name == "outcome":
+            out[name] = "failed"
+        elif name == "status":
+            out[name] = reason
+        elif name in _INT:
+            out[name] = 0
+        elif name in _BOOL:
+            out[name] = False
+        else:
+            out[name] = math.nan
+    if scene == "stream":  # one row, cycle 0, says why; the stream's results are undefined
+        out = {k: [v] for k, v in out.items()}
+        out.update({n: (-1 if n in _INT else math.nan) for n, _, _ in STREAM_LEVEL})
+        out["first_failure"] = 0
+    return out
+
+
+def explode_streams(cols: dict, n_params: int) -> dict:
+    """A block of stream runs ({column: values}, one entry per scene: its parameter columns
+    first, then the chunk's result columns) -> one entry per cycle: parameters and stream
+    results repeated, the cycle index and the cycle's results laid out (docs/model.md §14)."""
+    names = list(cols)
+    cycle_cols = {n for n, _, _ in R.STREAM_CYCLE_RESULTS}
+    counts = np.array([len(v) for v in cols["outcome"]], dtype=np.int64)
+    which = np.repeat(np.arange(len(counts)), counts)
+    out = {}
+    for name in names[:n_params]:
+        col = cols[name]
+        out[name] = col.take(arrow_array(which, pa.int64())) if isinstance(col, (pa.Array, pa.ChunkedArray)) else \
+            np.asarray(col, dtype=object)[which]
+    out["cycle"] = np.concatenate([np.arange(c, dtype=np.int64) for c in counts]) if len(counts) else \
+        np.empty(0, np.int64)
+    for name in names[n_params:]:
+        if name in cycle_cols:
+            out[name] = np.concatenate([np.asarray(vs) for vs in cols[name]]) if len(counts) else []
+        else:
+            out[name] = np.asarray(cols[name])[which]
+    return out
+
+
+def results_table(scene: str, rows: list, model_ids: Iterable[int] | None = None) -> pa.Table:
+    """Result dicts (exactly the keys of results.SCENE_RESULTS[scene]) -> an Arrow table."""
+    schema = result_schema(scene)
+    names = schema.names
+    for k, row in enumerate(rows):
+        if set(row) != set(names):
+            missing = sorted(set(names) - set(row))
+            extra = sorted(set(row) - set(names))
+            raise ValueError(f"result {k} of scene {scene!r} has missing keys {missing} / extra keys {extra}")
+    arrays = [arrow_array([row[n] for row in rows], schema.field(n).type) for n in names]
+    table = pa.Table.from_arrays(arrays, schema=schema)
+    if model_ids is not None:
+        table = table.append_column("_model", arrow_array(list(model_ids), pa.int64()))
+    return table
+
+
+# ---------------------------------------------------------------------------- atomic files
+@contextlib.contextmanager
+def atomic_path(path: str | Path, fsync: bool = True):
+    """Yield a temporary path beside `path`; on success fsync it and os.replace it onto `path`.
+    The temporary file is removed whatever happens; an OSError (ENOSPC: the disk is full) is
+    raised as a WriteError naming `path`, and `path` keeps what it held before.
+
+    Without fsync a power loss may leave a damaged file under the final name (never a
+    killed process: the rename is atomic); chunks skip it, as store.chunk_complete rejects a
+    damaged chunk and the sweep recomputes it."""
+    path = Path(path)
+    tmp = path.with_name(f".fencesweep-tmp-{os.getpid()}-{path.name}")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        yield tmp
+        if fsync:
+            with open(tmp, "rb") as fh:
+                os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except OSError as exc:  # a full disk, a read-only place: one error that names the file
+        raise write_error(exc, path) from exc
+    finally:
+        with contextlib.suppress(OSError):
+            tmp.unlink(missing_ok=True)
+
+
+def write_table_atomic(table: pa.Table, path: str | Path, fsync: bool = True) -> None:
+    with atomic_path(path, fsync) as tmp:
+        pq.write_table(table, tmp, compression=COMPRESSION)
+
+
+# ---------------------------------------------------------------------------- chunks
+def write_chunk(path: str | Path, scene: str, model_ids: list, rows: list, meta: dict) -> None:
+    """One finished chunk: the results of its model runs, with their model numbers."""
+    table = results_table(scene, rows, model_ids)
+    table = table.replace_schema_metadata(_meta_bytes(meta))
+    write_table_atomic(table, path, fsync=False)
+
+
+def chunk_complete(path: str | Path, n_rows: int) -> bool:
+    """True if `path` is a readable chunk of `n_rows` runs (anything else is recomputed)."""
+    try:
+        return pq.read_metadata(path).num_rows == n_rows
+    except (OSError, pa.ArrowInvalid):
+        return False
+
+
+def chunk_arrays(table: pa.Table) -> dict:
+    """A chunk's table (study/chunks.py) as {column: numpy array} (strings as object arrays),
+    `_model` included."""
+    return {name: numpy_column(table.column(name)) for name in table.column_names}
+
+
+class TableWriter:
+    """Write a sweep table block by block into one Parquet file, atomically at close."""
+
+    def __init__(self, path: str | Path, schema: pa.Schema):
+        self.path = Path(path)
+        self.schema = schema
+        self._cm = atomic_path(self.path)
+        self._tmp = self._cm.__enter__()
+        try:
+            self._writer = pq.ParquetWriter(self._tmp, schema, compression=COMPRESSION)
+        except OSError as exc:
+            with contextlib.suppress(OSError):
+                self._cm.__exit__(type(exc), exc, None)  # removes the temporary file
+            raise write_error(exc, self.path) from exc
+        self.n_rows = 0
+
+    def write(self, columns: dict) -> None:
+        """One row group: {name: values}, each a sequence, a numpy array or an Arrow array."""
+        arrays = [arrow_array(columns[f.name], f.type) for f in self.schema]
+        try:
+            self._writer.write_table(pa.Table.from_arrays(arrays, schema=self.schema))
+        except OSError as exc:
+            raise write_error(exc, self.path) from exc
+        self.n_rows += len(arrays[0]) if arrays else 0
+
+    def close(self) -> None:
+        """Finish the file and put it in place; on an error, remove the temporary file and raise
+        a WriteError (the file at `path` keeps what it held)."""
+        try:
+            self._writer.close()
+        except OSError as exc:
+            self.abort()
+            raise write_error(exc, self.path) from exc
+        self._cm.__exit__(None, None, None)
+
+    def abort(self) -> None:
+        with contextlib.suppress(Exception):
+            self._writer.close()
+        with contextlib.suppress(Exception):
+            self._cm.__exit__(RuntimeError, RuntimeError("aborted"), None)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, typ, exc, tb):
+        if typ is None:
+            self.close()
+        else:
+            self.abort()
+        return False
+
+
+# ---------------------------------------------------------------------------- reading
+def read_metadata(path: str | Path) -> dict:
+    """The provenance of a table: {'spec': ..., 'spec_hash': ..., 'versions': ..., ...}."""
+    raw = pq.read_schema(path).metadata or {}
+    out = {}
+    for k, v in raw.items():
+        k = k.decode()
+        if not k.startswith(META_PREFIX):
+            continue
+        out[k[len(META_PREFIX):]] = json.loads(v.decode())
+    return out
+
+
+def units(path: str | Path) -> dict:
+    """{column: unit} from the field metadata of a table."""
+    schema = pq.read_schema(path)
+    return {f.name: (f.metadata or {}).get(b"unit", b"").decode() for f in schema}
+
+
+def read_table(path: str | Path):
+    """A sweep table as a pandas DataFrame; df.attrs holds 'units' and 'fencesweep' (provenance)."""
+    import pandas as pd
+
+    df = pd.read_parquet(path)
+    df.attrs["units"] = units(path)
+    df.attrs["fencesweep"] = read_metadata(path)
+    return df
+
+
+# ---------------------------------------------------------------------------- trajectories
+def write_trajectory(traj_df, path: str | Path, vals: dict, results: dict) -> None:
+    """Write one run's time series to Parquet, atomically, with its parameters and results.
+
+    Schema metadata: `fencesweep.params` and `fencesweep.results` (JSON) and
+    `fencesweep.versions`. Column units come from `traj_df.attrs['units']` when the engine
+    gives them.
+    """
+    table = pa.Table.from_pandas(traj_df, preserve_index=False)
+    col_units = dict(getattr(traj_df, "attrs", {}).get("units", {}) or {})
+    if col_units:
+        fields = []
+        for f in table.schema:
+            md = dict(f.metadata or {})
+            if f.name in col_units:
+                md[b"unit"] = str(col_units[f.name]).encode()
+            fields.append(f.with_metadata(md))
+        table = table.cast(pa.schema(fields, metadata=table.schema.metadata))
+    meta = dict(table.schema.metadata or {})
+    meta.update(_meta_bytes({"params": _plain(vals), "results": _plain(results), "versions": versions()}))
+    table = table.replace_schema_metadata(meta)
+    write_table_atomic(table, path)
+
+
+def _plain(d: dict) -> dict:
+    out = {}
+    for k, v in d.items():
+        if isinstance(v, np.generic):
+            v = v.item()
+        if isinstance(v, float) and not math.isfinite(v):
+            v = None if math.isnan(v) else ("inf" if v > 0 else "-inf")
+        out[k] = v
+    return out
+
+
+def read_trajectory(path: str | Path):
+    """A trajectory written by write_trajectory; df.attrs has 'params', 'results', 'units'."""
+    import pandas as pd
+
+    df = pd.read_parquet(path)
+    meta = read_metadata(path)
+    df.attrs.update({k: meta.get(k) for k in ("params", "results", "versions")})
+    df.attrs["units"] = {k: v for k, v in units(path).items() if v}
+    return df
+
