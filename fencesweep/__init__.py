@@ -2,8 +2,9 @@
 
 One scene: simulate, simulate_resolved, resolve. Studies of many (README, Python API for
 sweeps): grid, estimate, design, sensitivity, as the CLI's commands, and points (an envelope
-sweep's per-design-point table); they live in fencesweep.study.api and are imported when first
-used, so that `import fencesweep` loads neither pandas nor pyarrow.
+sweep's per-design-point table); a table read back: read_table (units and provenance in
+df.attrs, as plain pd.read_parquet gives them) and to_xarray (a Dataset over the spec's axes).
+They are imported when first used, so that `import fencesweep` loads neither pandas nor pyarrow.
 """
 from fencesweep.version import __version__
 from fencesweep.errors import (DesignError, EnvelopeError, ParameterError, SensitivityError, SpecError,
@@ -11,24 +12,26 @@ from fencesweep.errors import (DesignError, EnvelopeError, ParameterError, Sensi
 from fencesweep.model.params import CASES, resolve
 from fencesweep.model.simulate import simulate, simulate_resolved
 
-#: the studies' functions (fencesweep.study.api), imported on first use
-_STUDIES = ("grid", "estimate", "design", "sensitivity", "points")
+#: the studies' functions and the tables' readers, each imported from its module on first use
+_LAZY = {"grid": "fencesweep.study.api", "estimate": "fencesweep.study.api", "design": "fencesweep.study.api",
+         "sensitivity": "fencesweep.study.api", "points": "fencesweep.study.api",
+         "read_table": "fencesweep.study.store.table", "to_xarray": "fencesweep.study.store.dataset"}
 
-#: what a user catches: bad input (ParameterError and its kinds, UsageError), a file that could not be
-#: written, an interrupted sweep, a verification that failed (fencesweep/errors.py)
+#: the exceptions are those a user catches: bad input (ParameterError and its kinds, UsageError), a
+#: file that could not be written, an interrupted sweep, a verification that failed (errors.py)
 __all__ = ["simulate", "simulate_resolved", "resolve", "CASES", "__version__",
            "ParameterError", "SpecError", "EnvelopeError", "DesignError", "SensitivityError", "UsageError",
            "WriteError", "SweepWriteError", "SweepInterrupted", "VerificationWarning",
-           "grid", "estimate", "design", "sensitivity", "points"]
+           "grid", "estimate", "design", "sensitivity", "points", "read_table", "to_xarray"]
 
 
 def __getattr__(name: str):
-    if name in _STUDIES:
-        from fencesweep.study import api
+    if name in _LAZY:
+        import importlib
 
-        return getattr(api, name)
+        return getattr(importlib.import_module(_LAZY[name]), name)
     raise AttributeError(f"module 'fencesweep' has no attribute {name!r}")
 
 
 def __dir__() -> list:
-    return sorted(set(globals()) | set(_STUDIES))
+    return sorted(set(globals()) | set(_LAZY))

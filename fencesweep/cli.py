@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import argparse
 import atexit
+import contextlib
 import gc
+import logging
 import json
 import math
 import sys
@@ -168,13 +170,36 @@ def add_grid_parser(sub) -> argparse.ArgumentParser:
     return g
 
 
+#: the package's logger: notes, summaries and the compile notice; main() shows it on stderr
+LOG = logging.getLogger("fencesweep")
+
+
 def _say(args: argparse.Namespace):
-    """The notes and summaries on stderr (with --quiet only the warnings)."""
+    """The notes and summaries, through the "fencesweep" logger (a warning at WARNING, the rest at
+    INFO: with --quiet only the warnings show)."""
     def say(msg: str) -> None:
-        if not args.quiet or msg.startswith("warning"):
-            print(msg, file=sys.stderr)
+        (LOG.warning if msg.startswith("warning") else LOG.info)(msg)
 
     return say
+
+
+@contextlib.contextmanager
+def _messages(quiet: bool):
+    """The "fencesweep" logger shown on stderr, message only, for the length of a command (INFO;
+    WARNING with --quiet); the logger's own settings are put back afterwards."""
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter("%(message)s"))
+    level, propagate = LOG.level, LOG.propagate
+    LOG.addHandler(handler)
+    LOG.setLevel(logging.WARNING if quiet else logging.INFO)
+    LOG.propagate = False
+    try:
+        yield
+    finally:
+        handler.flush()
+        LOG.removeHandler(handler)
+        LOG.setLevel(level)
+        LOG.propagate = propagate
 
 
 def _verify_arg(args: argparse.Namespace):
@@ -433,7 +458,8 @@ def main(argv: list[str] | None = None) -> int:
     ap = build_parser()
     args = ap.parse_args(argv)
     try:
-        return int(args.func(args) or 0)
+        with _messages(getattr(args, "quiet", False)):
+            return int(args.func(args) or 0)
     except (P.ParameterError, UsageError) as exc:
         print(f"fencesweep: error: {exc}", file=sys.stderr)
         return 2

@@ -33,7 +33,7 @@ for spec in "${SPECS[@]}"; do
   echo "results/$spec.parquet"
 done
 
-# 2b. design for every package (issue 10): the envelope map (419904 cycles, minutes), the
+# 2b. design for every package: the envelope map (419904 cycles, minutes), the
 #     recommendation, the operating window, the swing, and the sensitivity (needs SALib)
 rm -rf results/design results/envelope*.parquet results/window*.parquet results/swing.parquet results/tolerance.parquet results/tolerance_points.parquet results/sensitivity*.parquet
 fencesweep grid sweeps/envelope.yaml --quiet --no-resume "${JOBS[@]}"

@@ -1,6 +1,6 @@
 """Index layout of the float64 parameter vector `p` that every compiled kernel reads.
 
-Module-level integers are compile-time constants for Numba. `setup.prepare` fills the
+Module-level integers are compile-time constants for Numba. `prepare.prepare` fills the
 vector from a resolved parameter dict (docs/model.md §12) plus derived constants. It holds only
 what a kernel reads: a §12 value that enters only through a derived one (k1, k_lin and e
 through KC and CD, mu1 through FMAX and MMAX, m2 through I2, coupler_ratio through the drive
@@ -44,8 +44,8 @@ TAB_N = 31  # number of intervals of the crank-rocker table (0 for the harmonic 
 OMEGA_C = 32  # 2 pi / t_c, the crank's angular speed [rad/s]
 TAB_RATE = 33  # TAB_N / t_c: table intervals per second (drive.drive_angle multiplies, not divides)
 TAB_H = 34  # 2 pi / TAB_N, the crank angle of one table interval [rad] (1 for the harmonic profile)
-# --- numerics (numerics.py; filled by setup.prepare) ---
-METHOD = 35  # integrate.METHOD_DOPRI5 or METHOD_RK4
+# --- numerics (numerics.py; filled by prepare.prepare) ---
+METHOD = 35  # rk.METHOD_DOPRI5 or rk.METHOD_RK4
 TOL = 36  # local error tolerance (numerics.TOL x step_factor^5, floored)
 DT = 37  # fixed step of the RK4 baseline [s]
 H_MAX = 38  # largest step [s]

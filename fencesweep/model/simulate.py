@@ -1,7 +1,7 @@
 """Python API: `simulate(scene, case, **params) -> dict`.
 
 Orchestration only: checks parameters (params.resolve), prepares the kernel's parameter
-vector (setup.prepare), calls the compiled kernel of the scene and unpacks its results.
+vector (prepare.prepare), calls the compiled kernel of the scene and unpacks its results.
 """
 from __future__ import annotations
 

@@ -15,12 +15,14 @@ arguments, calls these and prints what they return.
 raises before anything is written: ParameterError (SpecError, a subclass, for a spec: it names
 the key, the value and what is allowed) or UsageError. `log` receives the notes a user should see
 (loads or scenes skipped, unused axes, resuming: what the CLI prints on stderr); by default
-nothing. Ctrl-C during a sweep raises SweepInterrupted (a KeyboardInterrupt): the chunks
+the "fencesweep" logger at level INFO. `progress`: True, False, or None (the default): a bar
+when a person is watching (a terminal, a notebook), nothing otherwise (sweep/progress.py). Ctrl-C during a sweep raises SweepInterrupted (a KeyboardInterrupt): the chunks
 finished are saved, and the same call again computes only the rest.
 """
 from __future__ import annotations
 
 import contextlib
+import logging
 import os
 from pathlib import Path
 from typing import Any, Callable
@@ -29,6 +31,7 @@ from fencesweep.errors import SweepInterrupted, SweepWriteError, UsageError, Wri
 from fencesweep.study.spec import envelope as E
 from fencesweep.study.design import points as PT
 from fencesweep.study.store import lock
+from fencesweep.study.sweep.progress import wanted as progress_wanted
 from fencesweep.study.sweep import output
 from fencesweep.study.spec import file as specfile
 from fencesweep.study.store import table as store
@@ -45,8 +48,9 @@ BACKENDS = ("loky", "dask")
 
 
 
-def _nothing(msg: str) -> None:
-    """The default log."""
+#: the default log: the notes go to the "fencesweep" logger (logging.getLogger("fencesweep")),
+#: which the CLI shows on stderr and a library user routes or silences as any logger
+_nothing = logging.getLogger("fencesweep.study").info
 
 
 def load_spec(spec: Any) -> S.Spec:
@@ -108,7 +112,7 @@ def _out(spec: S.Spec, out: Any) -> Path:
 
 
 def grid(spec: Any, *, out: str | Path | None = None, jobs: int | None = None, resume: bool = True,
-         progress: bool = False, backend: str = "loky", scheduler: str | None = None, overwrite: bool = False,
+         progress: bool | None = None, backend: str = "loky", scheduler: str | None = None, overwrite: bool = False,
          verify: bool | int | None = None, wait: bool = False, adaptive: bool = False,
          log: Callable[[str], None] | None = None):
     """Run the sweep of `spec` into `out` (default: the spec's output) and return its table, read
@@ -144,7 +148,7 @@ def _check_verify(verify: Any) -> None:
 
 
 def run_grid(spec: Any, *, out: str | Path | None = None, jobs: int | None = None, resume: bool = True,
-             progress: bool = False, backend: str = "loky", scheduler: str | None = None, overwrite: bool = False,
+             progress: bool | None = None, backend: str = "loky", scheduler: str | None = None, overwrite: bool = False,
              verify: bool | int | None = None, wait: bool = False, adaptive: bool = False,
              log: Callable[[str], None] | None = None) -> dict:
     """grid without reading the table back: run the sweep (and, for an envelope, write the
@@ -157,6 +161,7 @@ def run_grid(spec: Any, *, out: str | Path | None = None, jobs: int | None = Non
     cannot be written (a full disk) raises SweepWriteError (an OSError) saying what was kept.
     With `adaptive`, also "adaptive": the map's record (cycles run against the full grid's)."""
     log = log or _nothing
+    progress = progress_wanted(progress)
     _check_out(out)
     _check_jobs(jobs)
     _check_backend(backend, scheduler)
@@ -241,7 +246,7 @@ def points(table: Any):
 
 
 def estimate(spec: Any, *, out: str | Path | None = None, jobs: int | None = None, resume: bool = True,
-             backend: str = "loky", overwrite: bool = False, progress: bool = False,
+             backend: str = "loky", overwrite: bool = False, progress: bool | None = None,
              verify: bool | int | None = None, log: Callable[[str], None] | None = None) -> Estimate:
     """What grid would do (`fencesweep grid --dry-run`), writing nothing: the scenes, distinct model
     runs and chunks, the chunks already done, the engine's warm-up and seconds per run, and the
@@ -252,6 +257,7 @@ def estimate(spec: Any, *, out: str | Path | None = None, jobs: int | None = Non
     import joblib
 
     log = log or _nothing
+    progress = progress_wanted(progress)
     _check_out(out)
     _check_jobs(jobs)
     _check_backend_name(backend)
@@ -262,7 +268,7 @@ def estimate(spec: Any, *, out: str | Path | None = None, jobs: int | None = Non
                      overwrite=overwrite, progress=progress, verify=verify)
 
 
-def design(spec: Any, *, out: str | Path | None = None, jobs: int = 1, progress: bool = False,
+def design(spec: Any, *, out: str | Path | None = None, jobs: int = 1, progress: bool | None = None,
            log: Callable[[str], None] | None = None) -> dict:
     """`fencesweep design`: search the spec's design variables for the element farthest inside
     every constraint for every load of its envelope, verify it on a fresh sample and write
@@ -271,6 +277,7 @@ def design(spec: Any, *, out: str | Path | None = None, jobs: int = 1, progress:
     from fencesweep.study.design import search as D
 
     log = log or _nothing
+    progress = progress_wanted(progress)
     _check_jobs(jobs, none_ok=False)
     sp = load_spec(spec)
     if sp.design is None:
@@ -280,7 +287,7 @@ def design(spec: Any, *, out: str | Path | None = None, jobs: int = 1, progress:
     return D.run_design(sp, jobs=jobs, progress=progress, out_dir=out, log=log)
 
 
-def sensitivity(spec: Any, *, out: str | Path | None = None, jobs: int | None = None, progress: bool = False,
+def sensitivity(spec: Any, *, out: str | Path | None = None, jobs: int | None = None, progress: bool | None = None,
                 log: Callable[[str], None] | None = None):
     """`fencesweep sensitivity`: the Sobol indices (S1, ST) of the spec's sensitivity: outputs to its
     assumed inputs; runs the sample as a sweep (OUT_runs.parquet, OUT_runs_points.parquet) and
@@ -292,4 +299,4 @@ def sensitivity(spec: Any, *, out: str | Path | None = None, jobs: int | None = 
     sp = load_spec(spec)
     if sp.sensitivity is None:
         raise UsageError(f"{sp.path or 'the spec'} has no sensitivity: section; see sweeps/sensitivity.yaml")
-    return SA.run(sp, jobs=jobs, progress=progress, out=out, log=log or _nothing)
+    return SA.run(sp, jobs=jobs, progress=progress_wanted(progress), out=out, log=log or _nothing)

@@ -1,4 +1,4 @@
-"""Adaptive maps (issue 30): simulating a level's elements, chunk by chunk, and judging them.
+"""Adaptive maps: simulating a level's elements, chunk by chunk, and judging them.
 
 A level's elements (adaptive.Refiner.ask) become tasks: an element, its scenes in the order its
 loads run and their predictions (adaptive/loads.py). The tasks are cut into chunks of about

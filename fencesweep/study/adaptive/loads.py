@@ -1,4 +1,4 @@
-"""Adaptive maps (issue 30), per element: in which order its loads run and when it stops.
+"""Adaptive maps, per element: in which order its loads run and when it stops.
 
 One load proves an element infeasible: its cycle breaks a constraint (its own margin, the
 smallest of 1 - value / limit over the constraints and -1 for a load not scraped, is negative:

@@ -1,4 +1,4 @@
-"""Adaptive maps (issue 30): the maps of a spec, and the scenes of their elements.
+"""Adaptive maps: the maps of a spec, and the scenes of their elements.
 
 Two kinds of spec make maps:
 

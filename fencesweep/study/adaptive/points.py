@@ -1,4 +1,4 @@
-"""Adaptive maps (issue 30): the points table T_points and the run's record.
+"""Adaptive maps: the points table T_points and the run's record.
 
 T_points (OUT_points.parquet) has one row per element of the full grid, in the order of the
 full grid's scenes: the columns that name it (adaptive_maps.Layout.columns), then the columns

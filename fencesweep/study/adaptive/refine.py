@@ -1,4 +1,4 @@
-"""Adaptive maps (issue 30): which elements of a design grid to simulate, and what the others are.
+"""Adaptive maps: which elements of a design grid to simulate, and what the others are.
 
 A map is a grid of design points (elements) over d ordered axes; each element has a verdict
 (feasible or not), the constraint that binds and the signed margin to each constraint

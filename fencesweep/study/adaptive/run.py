@@ -1,4 +1,4 @@
-"""`fencesweep grid SPEC --adaptive` (issue 30): a map's verdicts from a fraction of its cycles.
+"""`fencesweep grid SPEC --adaptive`: a map's verdicts from a fraction of its cycles.
 
 The steps, each in its own module:
 
@@ -26,6 +26,7 @@ rules and VERSION: a changed rule never reuses a stale chunk. Orchestration only
 """
 from __future__ import annotations
 
+import logging
 import hashlib
 import json
 import math
@@ -89,8 +90,8 @@ def saved_chunks(spec: S.Spec, out: Path, rule: A.Rule | None = None, load_rule:
     return work, len(list(work.glob("chunk-*.parquet"))) if work.exists() else 0, None
 
 
-def _quiet(msg: str) -> None:
-    """The default log: nothing."""
+#: the default log: the "fencesweep" logger (api.py)
+_quiet = logging.getLogger(__name__).info
 
 
 def run_adaptive(spec: S.Spec, out: str | Path | None = None, jobs: int | None = None, resume: bool = True,

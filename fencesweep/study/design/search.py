@@ -1,5 +1,5 @@
 """`fencesweep design SPEC.yaml`: the element that keeps every constraint for every load of an
-envelope (issue 10). Orchestration only: the engine is api.simulate_resolved.
+envelope. Orchestration only: the engine is api.simulate_resolved.
 
 The spec's `design:` section (checked by spec/design.py) names the design variables (B2,
 K2, optionally any numeric §12 parameter such as m2, t_c, v) with their bounds, the constraints
@@ -36,6 +36,7 @@ from fencesweep.study.design import judge as J
 from fencesweep.model import params as P
 from fencesweep.study.spec import spec as S
 from fencesweep.study.spec.design import DesignConfig
+from fencesweep.study.sweep.progress import bar as progress_bar
 
 INFEASIBLE_SCORE = 10.0
 
@@ -197,9 +198,7 @@ def search(spec, cfg: DesignConfig, jobs: int = 1, progress: bool = False, simul
 
 
 def _bar(total: int, desc: str, enabled: bool):
-    from tqdm import tqdm
-
-    return tqdm(total=total, desc=desc, unit="gen", disable=not enabled, leave=False)
+    return progress_bar(total, desc, enabled, unit="generation", leave=False)
 
 
 def refine(spec, cfg: DesignConfig, start: dict, loads: list, simulate: Callable | None = None,

@@ -1,5 +1,5 @@
 """`fencesweep sensitivity SPEC.yaml`: Sobol indices of an element's worst overload and worst
-deflection over a load envelope to the inputs the model had to assume (issue 10, item 4).
+deflection over a load envelope to the inputs the model had to assume.
 
 The spec's `sensitivity:` section gives each assumed input (k1, e, mu1, mu2, swing, m2, or any
 numeric §12 parameter) a range {min, max}, the Saltelli base sample size n (a power of 2) and a

@@ -1,4 +1,4 @@
-"""Load envelopes: every package a sorter may see, as one axis of a sweep (issue 10).
+"""Load envelopes: every package a sorter may see, as one axis of a sweep.
 
 A spec's `envelope:` section gives, for parameters of docs/model.md §12 (normally the load's L, A,
 m1, dP, R_s, phi0), a range {min, max}, a list of choices or one value, and `dP: across` for

@@ -46,7 +46,7 @@ class Spec:
     source: str = ""
     path: str | None = None
     loads: list | None = None  # scene stream: one load per cycle (params.resolve_loads), for every scene
-    envelope: Any = None  # envelope.Envelope: its loads are the innermost axis (issue 10)
+    envelope: Any = None  # envelope.Envelope: its loads are the innermost axis
     design: Any = None  # design.DesignConfig: constraints, objective, variables (fencesweep design)
     sensitivity: Any = None  # sensitivity.parse_section: assumed inputs' ranges (fencesweep sensitivity)
     _shape: tuple = field(default=(), repr=False)

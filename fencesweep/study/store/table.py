@@ -30,6 +30,7 @@ import pyarrow.parquet as pq
 from fencesweep.errors import write_error
 from fencesweep.model import params as P
 from fencesweep.model import results as R
+from fencesweep.study.store.columns import arrow_array, numpy_column
 
 COMPRESSION = "zstd"
 META_PREFIX = "fencesweep."
@@ -81,78 +82,21 @@ def _json_default(x):
     raise TypeError(f"not JSON serialisable: {type(x).__name__}")
 
 
-#: Arrow types built from, and read into, NumPy buffers directly (arrow_array, numpy_column)
-_NUMPY_OF = {pa.float64(): np.float64, pa.int64(): np.int64}
+#: pandas' own schema key for DataFrame.attrs (pandas >= 2.1): `pd.read_parquet` of a table gives
+#: df.attrs = {"units": {column: unit}, "fencesweep": provenance}, as read_table does
+PANDAS_ATTRS = b"PANDAS_ATTRS"
 
 
-def arrow_array(values, typ: pa.DataType) -> pa.Array:
-    """`values` (a sequence or NumPy array) as an Arrow array of type `typ`, made from NumPy
-    buffers (pa.Array.from_buffers) for float64 (None a null), int64, bool and string values.
-
-    pa.array would do the same, but its first call in a process imports pandas (0.2 s,
-    measured), which a sweep's workers and its planning never need: with this, the main job's
-    processes never import it. Other types and other values go through pa.array."""
-    if isinstance(values, (pa.Array, pa.ChunkedArray)):
-        return values if values.type == typ else values.cast(typ)
-    n = len(values)
-    if typ == pa.bool_():
-        arr = np.asarray(values)
-        if arr.dtype.kind == "b":
-            return pa.Array.from_buffers(typ, n, [None, pa.py_buffer(np.packbits(arr, bitorder="little"))])
-    elif typ in _NUMPY_OF and n:
-        arr, valid = _with_nulls(values) if typ == pa.float64() else (np.asarray(values), None)
-        if arr.dtype.kind in ("iu" if typ == pa.int64() else "fiu"):
-            data = pa.py_buffer(np.ascontiguousarray(arr, _NUMPY_OF[typ]))
-            return pa.Array.from_buffers(typ, n, [valid, data], null_count=-1 if valid else 0)
-    elif typ == pa.string() and all(isinstance(v, str) for v in values):
-        data = [v.encode() for v in values]
-        offsets = np.zeros(n + 1, np.int32)
-        np.cumsum([len(b) for b in data], out=offsets[1:])
-        return pa.Array.from_buffers(typ, n, [None, pa.py_buffer(offsets), pa.py_buffer(b"".join(data))])
-    return pa.array(values, type=typ)
+def stamp(schema: pa.Schema, attrs: dict | None = None) -> pa.Schema:
+    """`schema` with PANDAS_ATTRS beside its fencesweep.* keys: `attrs`, by default the table's
+    units (field metadata) and provenance (fencesweep.* keys), so that plain pandas reads them."""
+    meta = dict(schema.metadata or {})
+    if attrs is None:
+        attrs = {"units": _units_of(schema), "fencesweep": _provenance_of(meta)}
+    meta[PANDAS_ATTRS] = json.dumps(attrs, sort_keys=True, default=_json_default).encode()
+    return schema.with_metadata(meta)
 
 
-def _with_nulls(values) -> tuple:
-    """(float values as a NumPy array, Arrow validity bitmap or None): None is a null (a
-    parameter a scene leaves unset); values that are not all numbers come back as an object
-    array, for pa.array to take."""
-    arr = np.asarray(values)
-    if arr.dtype != object:
-        return arr, None
-    missing = np.array([v is None for v in values], dtype=bool)
-    if not all(isinstance(v, (float, int)) for v, m in zip(values, missing) if not m):
-        return arr, None
-    valid = pa.py_buffer(np.packbits(~missing, bitorder="little")) if missing.any() else None
-    return np.where(missing, 0.0, arr).astype(np.float64), valid
-
-
-def numpy_column(col) -> np.ndarray:
-    """An Arrow column (Array or ChunkedArray) as a NumPy array (strings as an object array),
-    read from its buffers for the types arrow_array makes (see there: to_numpy's first call
-    imports pandas); other types, and columns with nulls, through to_numpy."""
-    chunks = col.chunks if isinstance(col, pa.ChunkedArray) else [col]
-    parts = [_numpy_chunk(c) for c in chunks]
-    if len(parts) == 1:
-        return parts[0]
-    if not parts:
-        return np.empty(0, _NUMPY_OF.get(col.type, bool if col.type == pa.bool_() else object))
-    return np.concatenate(parts)
-
-
-def _numpy_chunk(arr: pa.Array) -> np.ndarray:
-    n, off = len(arr), arr.offset
-    if n and arr.null_count == 0 and arr.type in _NUMPY_OF:
-        dt = np.dtype(_NUMPY_OF[arr.type])
-        return np.frombuffer(arr.buffers()[1], dt, count=n, offset=off * dt.itemsize)
-    if n and arr.null_count == 0 and arr.type == pa.bool_():
-        bits = np.frombuffer(arr.buffers()[1], np.uint8)
-        return np.unpackbits(bits, count=off + n, bitorder="little")[off:].astype(bool)
-    if arr.null_count == 0 and arr.type == pa.string():
-        return np.array(arr.to_pylist(), dtype=object)
-    return arr.to_numpy(zero_copy_only=False)
-
-
-# ---------------------------------------------------------------------------- schema
 def _field(name: str, typ: pa.DataType, unit: str, doc: str, role: str) -> pa.Field:
     return pa.field(name, typ, nullable=True,
                     metadata={b"unit": unit.encode(), b"doc": doc.encode(), b"role": role.encode()})
@@ -322,7 +266,9 @@ def atomic_path(path: str | Path, fsync: bool = True):
             tmp.unlink(missing_ok=True)
 
 
-def write_table_atomic(table: pa.Table, path: str | Path, fsync: bool = True) -> None:
+def write_table_atomic(table: pa.Table, path: str | Path, fsync: bool = True, attrs: dict | None = None) -> None:
+    """Write `table` to `path` atomically, stamped for pandas (stamp; `attrs`: its default)."""
+    table = table.replace_schema_metadata(stamp(table.schema, attrs).metadata)
     with atomic_path(path, fsync) as tmp:
         pq.write_table(table, tmp, compression=COMPRESSION)
 
@@ -354,11 +300,11 @@ class TableWriter:
 
     def __init__(self, path: str | Path, schema: pa.Schema):
         self.path = Path(path)
-        self.schema = schema
+        self.schema = stamp(schema)
         self._cm = atomic_path(self.path)
         self._tmp = self._cm.__enter__()
         try:
-            self._writer = pq.ParquetWriter(self._tmp, schema, compression=COMPRESSION)
+            self._writer = pq.ParquetWriter(self._tmp, self.schema, compression=COMPRESSION)
         except OSError as exc:
             with contextlib.suppress(OSError):
                 self._cm.__exit__(type(exc), exc, None)  # removes the temporary file
@@ -402,31 +348,38 @@ class TableWriter:
 
 
 # ---------------------------------------------------------------------------- reading
-def read_metadata(path: str | Path) -> dict:
-    """The provenance of a table: {'spec': ..., 'spec_hash': ..., 'versions': ..., ...}."""
-    raw = pq.read_schema(path).metadata or {}
+def _provenance_of(raw: dict) -> dict:
     out = {}
     for k, v in raw.items():
         k = k.decode()
-        if not k.startswith(META_PREFIX):
-            continue
-        out[k[len(META_PREFIX):]] = json.loads(v.decode())
+        if k.startswith(META_PREFIX):
+            out[k[len(META_PREFIX):]] = json.loads(v.decode())
     return out
+
+
+def _units_of(schema: pa.Schema) -> dict:
+    return {f.name: (f.metadata or {}).get(b"unit", b"").decode() for f in schema}
+
+
+def read_metadata(path: str | Path) -> dict:
+    """The provenance of a table: {'spec': ..., 'spec_hash': ..., 'versions': ..., ...}."""
+    return _provenance_of(pq.read_schema(path).metadata or {})
 
 
 def units(path: str | Path) -> dict:
     """{column: unit} from the field metadata of a table."""
-    schema = pq.read_schema(path)
-    return {f.name: (f.metadata or {}).get(b"unit", b"").decode() for f in schema}
+    return _units_of(pq.read_schema(path))
 
 
 def read_table(path: str | Path):
-    """A sweep table as a pandas DataFrame; df.attrs holds 'units' and 'fencesweep' (provenance)."""
+    """A table of fencesweep's as a pandas DataFrame; df.attrs holds 'units' and 'fencesweep'
+    (provenance). `pd.read_parquet(path)` gives the same (PANDAS_ATTRS); a table written before
+    that key existed gets its attrs from the schema here."""
     import pandas as pd
 
     df = pd.read_parquet(path)
-    df.attrs["units"] = units(path)
-    df.attrs["fencesweep"] = read_metadata(path)
+    if not df.attrs:
+        df.attrs.update(units=units(path), fencesweep=read_metadata(path))
     return df
 
 
@@ -449,9 +402,10 @@ def write_trajectory(traj_df, path: str | Path, vals: dict, results: dict) -> No
             fields.append(f.with_metadata(md))
         table = table.cast(pa.schema(fields, metadata=table.schema.metadata))
     meta = dict(table.schema.metadata or {})
-    meta.update(_meta_bytes({"params": _plain(vals), "results": _plain(results), "versions": versions()}))
+    prov = {"params": _plain(vals), "results": _plain(results), "versions": versions()}
+    meta.update(_meta_bytes(prov))
     table = table.replace_schema_metadata(meta)
-    write_table_atomic(table, path)
+    write_table_atomic(table, path, attrs={**prov, "units": {k: v for k, v in _units_of(table.schema).items() if v}})
 
 
 def _plain(d: dict) -> dict:
@@ -466,12 +420,14 @@ def _plain(d: dict) -> dict:
 
 
 def read_trajectory(path: str | Path):
-    """A trajectory written by write_trajectory; df.attrs has 'params', 'results', 'units'."""
+    """A trajectory written by write_trajectory; df.attrs has 'params', 'results', 'versions',
+    'units' (`pd.read_parquet` gives the same)."""
     import pandas as pd
 
     df = pd.read_parquet(path)
-    meta = read_metadata(path)
-    df.attrs.update({k: meta.get(k) for k in ("params", "results", "versions")})
-    df.attrs["units"] = {k: v for k, v in units(path).items() if v}
+    if not df.attrs:  # written before PANDAS_ATTRS
+        meta = read_metadata(path)
+        df.attrs.update({k: meta.get(k) for k in ("params", "results", "versions")})
+        df.attrs["units"] = {k: v for k, v in units(path).items() if v}
     return df
 

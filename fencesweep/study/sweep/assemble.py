@@ -1,4 +1,4 @@
-"""The table of a sweep (step 4 of sweep/pipeline.py), assembled block by block from the parameter blocks
+"""The table of a sweep (step 5 of sweep/pipeline.py), assembled block by block from the parameter blocks
 of the planning pass and the chunks of results: rows in scene order, ASSEMBLY_BLOCK rows per
 Parquet row group, one file written atomically with the spec, its hash and the versions in its
 schema metadata (table_meta).

@@ -41,6 +41,7 @@ the same steps; api.py the functions a Python user (and the CLI) calls.
 """
 from __future__ import annotations
 
+import logging
 import contextlib
 import shutil
 import time
@@ -102,8 +103,8 @@ class _Run:
     record: dict | None = None  # the verification's record, once made
 
 
-def _quiet(msg: str) -> None:
-    """The default log: nothing."""
+#: the default log: the "fencesweep" logger (api.py)
+_quiet = logging.getLogger(__name__).info
 
 
 def run_sweep(spec: S.Spec, out: str | Path | None = None, jobs: int | None = None,
