@@ -1,8 +1,12 @@
-"""REPORT.md's design section and the design figures (issue 10, item 5): built from small tables,
-every number read from them (changing a table changes the text)."""
+"""REPORT.md's opening (the element to build), its design section and the design figures: built
+from small tables, every number read from them (changing a table changes the text)."""
+import colorsys
 import json
 import math
+import re
+import shutil
 import textwrap
+from types import SimpleNamespace
 
 import pandas as pd
 import pytest
@@ -28,8 +32,11 @@ SPEC = """
       verify: {sobol: 2, seed: 9}
       compare:
         paper 72/570: {B2: 72, K2: 570}
+        two-case 15/2075: {B2: 15, K2: 2075}
         rigid fence: {drive: rigid}
     """
+#: the picks of the two named loads' maps (analysis.Design's best and damped), as the opening names them
+PICKS = SimpleNamespace(best={"B2": 15.0, "K2": 2075.0}, damped=None)
 SWING = """
     params: {drive: rigid}
     grid: {swing: [0.663225115758, 0.733038285838, 0.802851455917]}
@@ -101,3 +108,89 @@ def test_section_2_points_to_the_envelope_recommendation_only_when_there_is_one(
     assert "B2 = 231, K2 = 925" in text
     path.write_text(json.dumps({"status": "infeasible", "design_variables": {"B2": 231.0, "K2": 925.0}}))
     assert _envelope_pointer(tmp_path) == []
+
+
+# ---------------------------------------------------------------------------- the opening
+def opening(res, picks=PICKS) -> list:
+    """The report's first lines: the title, then the answer (document.py puts them first)."""
+    from fencesweep.report import answer_text as A
+    from fencesweep.report import document as DOC
+
+    return DOC._title(None) + A.answer_lines(res, picks)
+
+
+def test_report_opens_with_the_element_of_recommended_json(res, tmp_path):
+    rec = json.loads((res / "design" / "recommended.json").read_text())
+    dv, lines = rec["design_variables"], opening(res)
+    assert lines[0].startswith("# ")
+    first = next(line for line in lines[1:] if line)
+    assert first.startswith(f"**The element to build: B2 = {dv['B2']:g} N m s/rad, K2 = {dv['K2']:g} N m/rad**")
+    assert f"status {rec['status']}" in first and "t_c = 1.36 s" in first
+    head = "\n".join(lines[:6])
+    for name, m in rec["margins"].items():
+        if m is not None:
+            assert f"{name} {m:.3f} (worst " in head, name
+    assert f"**Binding: {rec['worst']['binding']}.**" in head
+    assert f"searched on {rec['optimisation_sample']['n_loads']} loads of the envelope" in head
+    assert f"verified on {rec['verification']['n_loads']} fresh ones" in head
+    # the two-case pick follows as a comparison, by its name in section 2
+    pick = next(line for line in lines if "15/2075" in line)
+    assert pick.startswith("* the two-case pick 15/2075 (section 2") and "build" not in pick
+    # another element in recommended.json: another opening (nothing typed in)
+    shutil.copytree(res / "design", tmp_path / "design")
+    (tmp_path / "design" / "comparison.parquet").unlink()  # the copy in recommended.json stands in
+    (tmp_path / "design" / "recommended.json").write_text(json.dumps(dict(rec, design_variables={"B2": 123.0,
+                                                                                                  "K2": 456.0})))
+    assert "**The element to build: B2 = 123 N m s/rad, K2 = 456 N m/rad**" in opening(tmp_path)[2]
+
+
+def test_no_other_element_is_called_the_one_to_build(res, tmp_path):
+    from fencesweep.report.maps_text import _envelope_pointer
+
+    rec = json.loads((res / "design" / "recommended.json").read_text())
+    b2, k2 = rec["design_variables"]["B2"], rec["design_variables"]["K2"]
+    names = (f"B2 = {b2:g}", f"{b2:g}/{k2:g}", f"{b2:g} / {k2:g}", f"B2 = {b2:g}, K2 = {k2:g}")
+    text = "\n".join(opening(res) + R.design_section(res) + _envelope_pointer(res))
+    assert "would build" not in text
+    hits = list(re.finditer(r"\bbuild\b", text))
+    assert len(hits) >= 3  # the opening, the pointer of section 2, the heading of section 7
+    for hit in hits:
+        after = text[hit.end():hit.end() + 300]
+        at = min(after.find(n) for n in names if n in after)  # ValueError: the element is not named
+        assert not any(other in after[:at] for other in ("15/2075", "72/570", "rigid")), after[:at]
+    # no feasible element: nothing is to be built
+    shutil.copytree(res / "design", tmp_path / "design")
+    (tmp_path / "design" / "recommended.json").write_text(json.dumps(dict(rec, status="infeasible: none")))
+    lines = opening(tmp_path)
+    assert lines[2].startswith("**No element keeps every constraint") and "build" not in "\n".join(lines)
+    assert _envelope_pointer(tmp_path) == []
+
+
+def test_recommended_figure_draws_only_the_cycles_of_the_element_to_build(res):
+    from fencesweep.errors import MissingInput
+    from fencesweep.report.figures_maps import _envelope_trajectories
+
+    with pytest.raises(MissingInput, match="fencesweep plot trajectories"):
+        _envelope_trajectories(res)  # the design has run, its cycles have not
+
+
+def _hue(color) -> float:
+    from matplotlib.colors import to_rgb
+
+    return 360 * colorsys.rgb_to_hsv(*to_rgb(color))[0]
+
+
+def test_envelope_map_gives_red_one_meaning(res, tmp_path, monkeypatch):
+    pytest.importorskip("matplotlib")
+    from fencesweep.report import design_figures as PD
+
+    redish = lambda h: h < 20 or h > 340  # noqa: E731
+    bluish = lambda h: 190 < h < 250  # noqa: E731
+    assert not any(redish(_hue(c)) or bluish(_hue(c)) for c in PD.BINDING_COLORS)
+    monkeypatch.setattr(PD, "_save", lambda fig, out, name: fig)
+    fig = PD.envelope_map(res, tmp_path)
+    left, right = (a.get_legend() for a in fig.axes[:2])
+    assert [t.get_text().split(":")[0] for t in left.get_texts()[:2]] == ["red", "blue"]
+    assert "the element to build (design/recommended.json)" in [t.get_text() for t in left.get_texts()]
+    for patch in right.get_patches():
+        assert not redish(_hue(patch.get_facecolor())) and not bluish(_hue(patch.get_facecolor()))

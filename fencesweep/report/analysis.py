@@ -104,19 +104,38 @@ def read_traj(res: Path, name: str):
     return store.read_trajectory(path)
 
 
-def design_runs(res: Path, residual_max_deg: float = RESIDUAL_MAX_DEG) -> dict:
-    """Cycles of the elements read off the design maps (needs the b2k2 table): name -> (case, overrides).
+def envelope_element(res: Path) -> dict | None:
+    """The element to build: the design over the load envelope (<res>/design/recommended.json of
+    `fencesweep design`), as the parameters of a cycle, {**fixed, **design variables}
+    ({'drive': 'flexible', 't_c': 1.36, 'v': 2.0, 'B2': 231.0, 'K2': 925.0}); None before the
+    design has run or when no element keeps every constraint (a status that is not 'feasible', with
+    or without the search's note after it)."""
+    import json
 
-    `<case>_recommended` is Design.best, `<case>_well_damped` Design.damped (docs/model.md names)."""
-    if not table_path(res, "b2k2").exists():
-        return {}
-    D = design(read_table(res, "b2k2"), residual_max_deg)
-    runs = {}
-    for tag, pick in (("recommended", D.best), ("well_damped", D.damped)):
-        if pick:
-            for c in CASES:
-                runs[f"{c}_{tag}"] = (c, {"drive": "flexible", "B2": pick["B2"], "K2": pick["K2"]})
-    return runs
+    path = Path(res) / "design" / "recommended.json"
+    if not path.exists():
+        return None
+    rec = json.loads(path.read_text())
+    if not str(rec.get("status", "")).startswith("feasible"):
+        return None
+    return {**rec.get("fixed", {}), **rec["design_variables"]}
+
+
+def design_runs(res: Path, residual_max_deg: float = RESIDUAL_MAX_DEG) -> dict:
+    """Cycles of the elements the report compares, each for both named cases: name -> (case, overrides).
+
+    `<case>_recommended` is the two-case pick (Design.best of the b2k2 maps), `<case>_well_damped`
+    the well-damped pick (Design.damped), `<case>_envelope` the element to build (envelope_element);
+    each only when its table is there."""
+    picks = []
+    if table_path(res, "b2k2").exists():
+        D = design(read_table(res, "b2k2"), residual_max_deg)
+        picks += [(tag, {"drive": "flexible", "B2": pick["B2"], "K2": pick["K2"]})
+                  for tag, pick in (("recommended", D.best), ("well_damped", D.damped)) if pick]
+    env = envelope_element(res)
+    if env:
+        picks.append(("envelope", env))
+    return {f"{c}_{tag}": (c, dict(over)) for tag, over in picks for c in CASES}
 
 
 def worst_runs(res: Path) -> dict:

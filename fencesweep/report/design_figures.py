@@ -1,4 +1,4 @@
-"""Figures of the design for every package (issue 10): the robust feasible region over B2 x K2,
+"""Figures of the design for every package: the robust feasible region over B2 x K2,
 the operating window over t_c x v, the sensitivity bars. Drawn from the tables in results/
 (`fencesweep plot-design`); matplotlib is imported only here.
 """
@@ -42,11 +42,58 @@ def _edges(v: np.ndarray) -> np.ndarray:
 
 
 BINDING = ["scraped", "overload", "deflection_max", "residual_amplitude"]
+#: colours of the binding constraint (right panel). The left panel's diverging map gives red to a
+#: broken margin and blue to a kept one, so these hues are neither red nor blue: one colour, one meaning.
+BINDING_COLORS = ["#984ea3", "#e6ab02", "#8c510a", "#1b9e77"]
+#: markers of the compared elements on both panels: the element to build, and every other one
+BUILD_MARK = dict(marker="*", ms=17, mfc="white", mec="k", mew=1.2, ls="")
+OTHER_MARK = dict(marker="o", ms=8, mfc="0.55", mec="k", mew=1.0, ls="")
+
+
+def _mark_elements(axes, rec: dict, K2: np.ndarray) -> None:
+    """The compared elements of recommended.json on both panels, each named; the element to build
+    (its design variables) with BUILD_MARK, the others with OTHER_MARK."""
+    dv = rec["design_variables"]
+    for row in rec["comparison"]:
+        if row.get("B2") is None or row.get("K2") is None:
+            continue
+        build = math.isclose(row["B2"], dv["B2"]) and math.isclose(row["K2"], dv["K2"])
+        nums = f"{row['B2']:g}/{row['K2']:g}"
+        text = f"to build: {nums}" if build else (row["design"] if nums in row["design"] else f"{row['design']} {nums}")
+        high = row["K2"] > K2.min() + 0.85 * (K2.max() - K2.min())
+        for a in axes:
+            a.plot(row["B2"], row["K2"], zorder=5, **(BUILD_MARK if build else OTHER_MARK))
+            a.annotate(text, (row["B2"], row["K2"]), fontsize=7.5 if build else 7, xytext=(8, -14 if high else 7),
+                       textcoords="offset points", zorder=6, weight="bold" if build else "normal",
+                       bbox={"boxstyle": "round,pad=0.15", "fc": "white", "alpha": 0.8, "lw": 0})
+
+
+def _legends(axes, rec: dict, present: set) -> None:
+    """Each panel says under it what its colours, line and markers mean (`present`: the binding
+    constraints the right panel shows)."""
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    ok = "the element to build" if str(rec.get("status")).startswith("feasible") else "the design's best (infeasible)"
+    marks = [Line2D([], [], color="k", lw=1.2, label="margin 0: the edge of the robust feasible region"),
+             Line2D([], [], label=ok + " (design/recommended.json)", **BUILD_MARK),
+             Line2D([], [], label="compared elements", **OTHER_MARK)]
+    axes[0].legend(handles=[Patch(color="#b2182b", label="red: margin < 0, some load breaks a constraint"),
+                            Patch(color="#2166ac", label="blue: margin > 0, every load keeps every constraint"),
+                            *marks], loc="upper center", bbox_to_anchor=(0.5, -0.11), ncol=2, fontsize=7.5,
+                   frameon=False)
+    axes[1].legend(handles=[Patch(color=c, label=f"{b} binds") for c, b in zip(BINDING_COLORS, BINDING)
+                            if b in present] + marks,
+                   loc="upper center", bbox_to_anchor=(0.5, -0.11), ncol=2, fontsize=7.5, frameon=False,
+                   title="the constraint with the smallest margin (inside the black line it still holds)",
+                   title_fontsize=7.5)
 
 
 def envelope_map(res: Path, out: Path) -> Path:
     """The smallest margin over the envelope's loads on B2 x K2, its zero contour (the robust
-    feasible region), the binding constraint, and the compared elements."""
+    feasible region), the binding constraint, and the compared elements. Red and blue mean a
+    broken and a kept margin on the left panel only; the binding constraints on the right have
+    colours of their own (BINDING_COLORS), and each panel's legend says what its colours are."""
     import pandas as pd
 
     pts = pd.read_parquet(_need(res / "envelope_points.parquet", "fencesweep grid sweeps/envelope.yaml"))
@@ -59,41 +106,24 @@ def envelope_map(res: Path, out: Path) -> Path:
     plt = _plt()
     from matplotlib.colors import ListedColormap, TwoSlopeNorm
 
-    fig, axes = plt.subplots(1, 2, figsize=(13, 5.6), layout="constrained")
+    fig, axes = plt.subplots(1, 2, figsize=(13, 6.6), layout="constrained")
     ax = axes[0]
     top = max(0.02, float(np.nanmax(grid)))
     m = ax.pcolormesh(_edges(B2), _edges(K2), np.clip(grid, -1.0, top), cmap="RdBu",
                       norm=TwoSlopeNorm(0.0, -1.0, top), shading="flat")
     fig.colorbar(m, ax=ax, label="smallest margin over the loads, 1 - worst / limit [-] (below -1: -1)")
-    ax.contour(B2, K2, grid, levels=[0.0], colors="k", linewidths=1.2)
-    ax.set_title(f"Smallest margin over {int(pts['n_loads'].iloc[0])} loads of the envelope\n"
-                 f"black line: margin 0 (inside: every load keeps every constraint); "
-                 f"{int(pts['feasible'].sum())} of {len(pts)} elements", fontsize=9)
+    ax.set_title(f"Smallest margin over {int(pts['n_loads'].iloc[0])} loads of the envelope: "
+                 f"{int(pts['feasible'].sum())} of {len(pts)} elements keep every constraint", fontsize=9)
     ax = axes[1]
-    colors = ["#7b3294", "#d7191c", "#fdae61", "#2c7bb6"]
-    ax.pcolormesh(_edges(B2), _edges(K2), bind, cmap=ListedColormap(colors), vmin=-0.5, vmax=3.5, shading="flat")
-    ax.contour(B2, K2, grid, levels=[0.0], colors="k", linewidths=1.2)
-    from matplotlib.patches import Patch
-
-    ax.legend(handles=[Patch(color=c, label=b) for c, b in zip(colors, BINDING)], loc="upper right", fontsize=8,
-              title="binding constraint", title_fontsize=8)
+    ax.pcolormesh(_edges(B2), _edges(K2), bind, cmap=ListedColormap(BINDING_COLORS), vmin=-0.5, vmax=3.5,
+                  shading="flat")
     ax.set_title("The constraint with the smallest margin (the one that binds)", fontsize=9)
-    marks = {"envelope recommendation": ("*", "#00c000", 16)}
-    for row in rec["comparison"]:
-        if row.get("B2") is None or row.get("K2") is None:
-            continue
-        mk, col, size = marks.get(row["design"], ("o", "white", 8))
-        nums = f"{row['B2']:g}/{row['K2']:g}"
-        text = row["design"] if nums in row["design"] else f"{row['design']} {nums}"
-        high = row["K2"] > K2.min() + 0.85 * (K2.max() - K2.min())
-        for a in axes:
-            a.plot(row["B2"], row["K2"], mk, color=col, ms=size, mec="k")
-            a.annotate(text, (row["B2"], row["K2"]), fontsize=7,
-                       xytext=(6, -14 if high else 6), textcoords="offset points",
-                       bbox={"boxstyle": "round,pad=0.15", "fc": "white", "alpha": 0.7, "lw": 0})
     for a in axes:
+        a.contour(B2, K2, grid, levels=[0.0], colors="k", linewidths=1.2)
         a.set_xlabel("B2 [N m s/rad]")
         a.set_ylabel("K2 [N m/rad]")
+    _mark_elements(axes, rec, K2)
+    _legends(axes, rec, set(pts["binding"]))
     fixed = rec["fixed"]
     fig.suptitle(f"Design for every package: B2 x K2 over the load envelope (t_c = {fixed.get('t_c', 1.36):g} s, "
                  f"v = {fixed.get('v', 2.0):g} m/s; residual amplitude <= "

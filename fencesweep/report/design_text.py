@@ -1,4 +1,4 @@
-"""REPORT.md's design section (issue 10): every number is read from the tables in results/ when
+"""REPORT.md's design section (7): every number is read from the tables in results/ when
 the report is written (recommended.json and comparison.parquet of `fencesweep design`, the
 envelope sweep's per-design-point table, the two-case map b2k2.parquet, swing.parquet,
 window_points.parquet, sensitivity.parquet); nothing is typed in here.
@@ -316,7 +316,7 @@ def design_section(res: Path) -> list:
          "[`design/recommended.json`](design/recommended.json).", ""]
     if (res / "envelope_points.parquet").exists():
         L += ["### The robust feasible region", ""] + _region(res, rec) + ["", "![envelope map](figures/envelope_map.png)", ""]
-    L += ["### The recommended element", ""] + _recommendation(rec) + ["", "### Comparison on the fresh loads", ""]
+    L += ["### The element to build", ""] + _recommendation(rec) + ["", "### Comparison on the fresh loads", ""]
     L += _comparison(res, rec) + [""]
     L += _whole_width(res, rec) + [""]
     if (res / "tolerance_points.parquet").exists() and (res / "tolerance.parquet").exists():

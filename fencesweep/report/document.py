@@ -1,7 +1,8 @@
-"""REPORT.md: each result of the paper against ours, the stages, the escapes, the design maps,
-the streams and the design for every package, written from the tables and trajectories that
-analysis.py reads. write_report assembles the file from the sections: paper_text.py (1, 4),
-fig5a_text.py, maps_text.py (2), stream_text.py (6), design_text.py (7); the header, the list of
+"""REPORT.md: the element to build first, then each result of the paper against ours, the stages,
+the escapes, the design maps, the streams and the design for every package, written from the tables
+and trajectories that analysis.py reads. write_report assembles the file from the sections:
+answer_text.py (the opening, right under the title), paper_text.py (1, 4), fig5a_text.py,
+maps_text.py (2), stream_text.py (6), design_text.py (7); the title, the header, the list of
 figures (3) and the notes (5) are here. Orchestration and bookkeeping only (no physics, no matplotlib).
 """
 from __future__ import annotations
@@ -12,6 +13,7 @@ from pathlib import Path
 
 from fencesweep.report.analysis import (FREEFALL_LEVELS_H, PAPER_B2, PAPER_K2, RESIDUAL_MAX_DEG, STREAM_FIGURE_CYCLES,
                                         STREAM_FIGURE_TC, TABLES, TRAJECTORIES, read_table, table_path)
+from fencesweep.report.answer_text import answer_lines
 from fencesweep.report.fig5a_text import fig5a_section
 from fencesweep.report.inputs import ReportInputs, report_inputs
 from fencesweep.report.maps_text import maps_section, paper_element_section
@@ -41,11 +43,13 @@ def write_report(res: Path = Path("results"), residual_max_deg: float = RESIDUAL
     out = Path(out) if out else res / "REPORT.md"
     I = report_inputs(res, residual_max_deg)
     sections = (
-        _header,
+        _title,
+        _answer,                # the element to build, its margins, what it was checked on (answer_text.py)
+        _header,                # how the file is made, the engine, the working point
         paper_section,          # 1. the paper's results side by side (paper_text.py)
         stage_section,          #    stage sequences
         fig5a_section,          #    Fig. 5a: the worst-case arrangement, the jumps, the escapes (fig5a_text.py)
-        maps_section,           # 2. design maps and the recommended element (maps_text.py)
+        maps_section,           # 2. design maps and the two-case pick (maps_text.py)
         paper_element_section,  #    the paper's 72/570 against the constraints, the threshold, the reading
         _figures_section,       # 3. figures
         differences_section,    # 4. where we differ from the paper (paper_text.py)
@@ -60,11 +64,20 @@ def write_report(res: Path = Path("results"), residual_max_deg: float = RESIDUAL
     return out
 
 
+def _title(I: ReportInputs) -> list[str]:
+    return ["# Results: the seed paper side by side, and the B2 x K2 design maps", ""]
+
+
+def _answer(I: ReportInputs) -> list[str]:
+    """The element to build over the load envelope (empty until `fencesweep design` has run); the
+    picks of the two named loads' maps are named in its comparison."""
+    return answer_lines(I.res, I.D)
+
+
 def _header(I: ReportInputs) -> list[str]:
     p = I.base
     law = 'modified Kelvin ("hertz")' if p["contact_law"] == "hertz" else p["contact_law"]
-    L = ["# Results: the seed paper side by side, and the B2 x K2 design maps", "",
-         "Everything in `results/` (sweep tables, trajectories, figures, this file) is regenerated from "
+    L = ["Everything in `results/` (sweep tables, trajectories, figures, this file) is regenerated from "
          "scratch by one command, run from the repository root:", "", "    bash results/regenerate.sh", ""]
     start = os.environ.get("FENCESWEEP_REGEN_START")
     if start:
@@ -102,17 +115,26 @@ def _figures_section(I: ReportInputs) -> list[str]:
         ("map_small_far.png", "design maps, small_far: overload, deflection_max, residual amplitude, outcome"),
         ("map_long_near.png", "design maps, long_near"),
         ("map_both.png", "both cases: worst overload over the feasible region, the first constraint that fails, "
-         "the recommendation"),
+         "the two-case pick"),
         ("cycle_small_far.png", "one cycle in frames: load, fence, drive lever, belt, contact forces (small_far, "
          f"flexible {el})"),
         ("cycle_long_near.png", "the same for long_near"),
-        ("recommended.png", f"deflection and fence force over a cycle: the paper's {el}, the two-case pick and the "
-         "well-damped element, both cases"),
+        ("recommended.png", "deflection and fence force over a cycle, both named cases: " + _recommended_figure(I)),
         ("stream_deflection.png", f"deflection over {STREAM_FIGURE_CYCLES} cycles back to back (scene stream) at "
          f"T = t_c, t_c = {' and '.join(f'{t:g}' for t in STREAM_FIGURE_TC)} s: the paper's {el}, the two-case pick and "
          "the well-damped element (section 6)"),
     ]
     return ["## 3. Figures (`results/figures/`)", ""] + [f"* [`{f}`](figures/{f}): {t}" for f, t in figs] + [""]
+
+
+def _recommended_figure(I: ReportInputs) -> str:
+    """What recommended.png draws: the element to build (when the design has run), then the others."""
+    from fencesweep.report.analysis import envelope_element
+
+    el = f"the paper's {PAPER_B2:g}/{PAPER_K2:g}, the two-case pick and the well-damped pick"
+    env = envelope_element(I.res)
+    return (f"the element to build, {env['B2']:g}/{env['K2']:g} (`design/recommended.json`), against {el}" if env
+            else el)
 
 
 def _notes_section(I: ReportInputs) -> list[str]:
@@ -132,6 +154,6 @@ def _stream_part(I: ReportInputs) -> list[str]:
 
 
 def _design_part(I: ReportInputs) -> list[str]:
-    from fencesweep.report.design_text import design_section  # issue 10: empty until `fencesweep design` has run
+    from fencesweep.report.design_text import design_section  # empty until `fencesweep design` has run
 
     return design_section(I.res)

@@ -4,7 +4,7 @@
 trajectories in <results>/ (fencesweep.report.analysis lists which: TABLES, TRAJECTORIES). Drawing
 only: no physics here; every number comes from a Parquet file the engine wrote. This module is the
 registry (FIGURES) and `plot`; the figures are drawn in figures_paper_cycles.py (Figs 2-4, 7, 8),
-figures_paper_sweeps.py (Figs 5a, 5b, 6), figures_maps.py (design maps, the recommended element)
+figures_paper_sweeps.py (Figs 5a, 5b, 6), figures_maps.py (design maps, the element to build)
 and figures_cycle.py (cycle frames, the stream), with what they share in figures_common.py.
 
     fencesweep plot trajectories     # run the single cycles the figures need (engine)
@@ -38,7 +38,7 @@ FIGURES = {
     "fig8": (fig8, "paper Fig. 8: load path, rigid vs flexible"),
     "maps": (maps, "design maps over B2 x K2 (per case and both)"),
     "cycle": (cycle, "one cycle in frames, per case"),
-    "recommended": (recommended, "the recommended element against the paper's 72/570"),
+    "recommended": (recommended, "the element to build (recommended.json) against the paper's 72/570 and the maps' picks"),
     "stream": (stream, "deflection over 10 cycles back to back (scene stream), three elements"),
 }
 #: number of PNG files `plot all` writes

@@ -1,6 +1,7 @@
 """The B2 x K2 design maps of the two named cases (b2k2 table: one map per case and one for both, with
-the feasible region and the recommended element) and the figure of the elements read off them
-(recommended.png: deflection and fence force over a cycle against the paper's 72/570).
+the feasible region and the two-case pick) and recommended.png: deflection and fence force over a
+cycle of the element to build (the load envelope's design) against the paper's 72/570 and the two
+picks of the maps.
 """
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from fencesweep.errors import MissingInput
 from fencesweep.report import analysis as RP
 from fencesweep.report.figures_common import OUTCOME_COLORS, WORKING_POINT, pyplot, save
 
@@ -111,7 +113,7 @@ def _map_case(res: Path, out: Path, case: str, D) -> Path:
     handles += [Line2D([], [], color="k", lw=2.2, label="feasible region (cyan on the other maps)"),
                 Line2D([], [], color="0.25", ls="--", label="Psi = 1 (critical damping)"),
                 Line2D([], [], ls="", marker="o", mfc="white", mec="k", label="paper's element 72/570"),
-                Line2D([], [], ls="", marker="*", ms=11, mfc="gold", mec="k", label="two-case pick (recommended for both named cases)")]
+                Line2D([], [], ls="", marker="*", ms=11, mfc="gold", mec="k", label="two-case pick (least overload, both named cases)")]
     ax.legend(handles=handles, loc="upper right", fontsize=7, framealpha=0.9)
     n = int(D.feasible[case].sum())
     fig.suptitle(f"Design map over B2 x K2, {RP.CASE_TEXT[case]}; {WORKING_POINT}, m2 = 5 kg\n"
@@ -160,11 +162,11 @@ def _map_both(res: Path, out: Path, D) -> Path:
         a.set_ylim(ye[0], ye[-1])
     axes[0].set_ylabel("stiffness K2 [N m/rad]")
     b = D.best
-    rec = (f"recommended B2 = {b['B2']:g} N m s/rad, K2 = {b['K2']:g} N m/rad (Psi = {b['Psi']:.2f}), worst overload "
+    rec = (f"two-case pick B2 = {b['B2']:g} N m s/rad, K2 = {b['K2']:g} N m/rad (Psi = {b['Psi']:.2f}), worst overload "
            f"{b['worst_overload']:.3f}" if b else "no cell is feasible for both cases with a one-step margin")
     if D.damped:
         d = D.damped
-        rec += f"; well-damped (0.7 <= Psi <= 1): {d['B2']:g} / {d['K2']:g}, {d['worst_overload']:.3f}"
+        rec += f"; well-damped pick (0.7 <= Psi <= 1): {d['B2']:g} / {d['K2']:g}, {d['worst_overload']:.3f}"
         axes[0].plot([d["B2"]], [d["K2"]], "D", ms=6, mfc="none", mec="w", mew=1.3, zorder=7)
     fig.suptitle(f"Design map for both named cases (small_far and long_near), {WORKING_POINT}; residual threshold "
                  f"{D.residual_max_deg:g} deg\n{rec}")
@@ -180,57 +182,90 @@ def maps(res: Path, out: Path, residual_max_deg: float = RP.RESIDUAL_MAX_DEG) ->
     return paths
 
 
-# ---------------------------------------------------------------------------- the recommended element
+# ---------------------------------------------------------------------------- the element to build
+#: the curves of recommended.png: trajectory tag (analysis.design_runs), name, colour, line style, width
+RECOMMENDED_CURVES = (("envelope", "to build (load envelope)", "#762a83", "-", 2.4),
+                      ("flexible", "paper", "#d62728", "-", 1.3),
+                      ("recommended", "two-case pick", "#1a9850", "-", 1.3),
+                      ("well_damped", "well-damped pick", "#4575b4", "--", 1.3))
+
+
+def _envelope_trajectories(res: Path) -> dict | None:
+    """The element to build (analysis.envelope_element), after checking that its trajectories are
+    its own: a trajectory left from an earlier design would draw another element under its name."""
+    env = RP.envelope_element(res)
+    if not env:
+        return None
+    for case in RP.CASES:
+        name = f"{case}_envelope"
+        p = RP.read_traj(res, name).attrs["params"] if RP.traj_path(res, name).exists() else None
+        if p is None or not all(math.isclose(float(p[k]), float(env[k])) for k in ("B2", "K2")):
+            raise MissingInput(f"{RP.traj_path(res, name)} is missing or is not the element of "
+                                  f"{Path(res) / 'design' / 'recommended.json'} (B2 = {env['B2']:g}, K2 = "
+                                  f"{env['K2']:g}): run `fencesweep plot trajectories --results {res}`")
+    return env
+
+
+def _deflection_panel(ax, case: str, df) -> None:
+    perm = math.degrees(float(df.attrs["params"]["dalpha_perm"]))
+    ax.axhline(0, color="k", lw=0.6)
+    for sgn in (1, -1):
+        ax.axhline(sgn * RP.RESIDUAL_MAX_DEG, color="0.5", lw=0.7, ls=":")
+    ax.set_xlim(0, float(df.attrs["params"]["t_c"]))
+    ax.set_ylabel("deflection alpha - alpha_w [deg]")
+    ax.set_xlabel("time t [s]")
+    ax.set_title(f"{RP.CASE_TEXT[case]}\ndeflection (dotted: +-{RP.RESIDUAL_MAX_DEG:g} deg, the 'home' "
+                 f"threshold on the residual amplitude; dalpha_perm = {perm:.0f} deg)", fontsize=9)
+    ax.grid(alpha=0.3)
+    ax.legend(loc="upper left", bbox_to_anchor=(0.0, -0.2), fontsize=7.5, ncol=1, frameon=False)
+
+
+def _force_panel(ax, case: str, df, shown: list) -> None:
+    a = min(e.A for e in shown)
+    b = max(e.B for e in shown)
+    if case == "small_far":
+        ax.set_xlim(a - 0.01, b + 0.02)
+        ax.set_yscale("symlog", linthresh=0.02)
+    else:
+        ax.set_xlim(0, float(df.attrs["params"]["t_c"]))
+    ax.axhline(1.0, color="k", lw=0.8, ls="--")
+    ax.set_ylabel("fence force / free-fall peak [-]")
+    ax.set_xlabel("time t [s]")
+    ax.set_title(f"{case}: normal force of the load on the fence\n" +
+                 ("zoomed on the contact, symmetric log scale above 0.02" if case == "small_far" else
+                  "whole cycle"), fontsize=9)
+    ax.grid(alpha=0.3)
+
+
 def recommended(res: Path, out: Path) -> Path:
-    """Deflection and fence force over a cycle: the paper's 72/570 against the elements read off the maps."""
+    """Deflection and fence force over a cycle of each named case: the element to build (the load
+    envelope's design, results/design/recommended.json, drawn thick) against the paper's 72/570 and
+    the two picks of the named cases' maps. Before the design has run: the last three only."""
+    from fencesweep.model.params import relative_damping
+
     plt = pyplot()
-    fig, axes = plt.subplots(2, 2, figsize=(11, 8.2), layout="constrained")
-    variants = [("flexible", "paper", "#d62728", "-"), ("recommended", "two-case pick", "#1a9850", "-"),
-                ("well_damped", "well-damped", "#4575b4", "--")]
+    env = _envelope_trajectories(res)
+    fig, axes = plt.subplots(2, 2, figsize=(12, 9.2), layout="constrained")
     for r, case in enumerate(RP.CASES):
         shown = []
-        for tag, what, color, ls in variants:
-            path = RP.traj_path(res, f"{case}_{tag}")
-            if tag != "flexible" and not path.exists():
+        for tag, what, color, ls, lw in RECOMMENDED_CURVES:
+            if tag != "flexible" and not RP.traj_path(res, f"{case}_{tag}").exists():
                 continue
             df = RP.read_traj(res, f"{case}_{tag}")
             p, rs = df.attrs["params"], df.attrs["results"]
-            from fencesweep.model.params import relative_damping
-
             label = (f"{what}: B2 = {p['B2']:g}, K2 = {p['K2']:g} (Psi = {relative_damping(p['B2'], p['K2'], p['I2']):.2f})"
-                     f"; overload {rs['overload']:.3f}, residual amplitude {math.degrees(rs['residual_amplitude']):.2f} deg")
+                     f"\noverload {rs['overload']:.3f}, residual amplitude {math.degrees(rs['residual_amplitude']):.2f} deg")
             t = df["t"].to_numpy()
-            axes[r, 0].plot(t, np.degrees(df["alpha"] - df["alpha_w"]), color=color, ls=ls, lw=1.4, label=label)
-            axes[r, 1].plot(t, df["N_fence"] / rs["freefall_force"], color=color, ls=ls, lw=1.3)
+            z = 1.5 if tag == "envelope" else 2  # thick and underneath: the thin curves stay visible on it
+            axes[r, 0].plot(t, np.degrees(df["alpha"] - df["alpha_w"]), color=color, ls=ls, lw=lw, label=label, zorder=z)
+            axes[r, 1].plot(t, df["N_fence"] / rs["freefall_force"], color=color, ls=ls, lw=lw, zorder=z)
             shown.append(RP.events(df))
-        perm = math.degrees(float(df.attrs["params"]["dalpha_perm"]))
-        ax = axes[r, 0]
-        ax.axhline(0, color="k", lw=0.6)
-        for sgn in (1, -1):
-            ax.axhline(sgn * RP.RESIDUAL_MAX_DEG, color="0.5", lw=0.7, ls=":")
-        ax.set_xlim(0, float(df.attrs["params"]["t_c"]))
-        ax.set_ylabel("deflection alpha - alpha_w [deg]")
-        ax.set_xlabel("time t [s]")
-        ax.set_title(f"{RP.CASE_TEXT[case]}\ndeflection (dotted: +-{RP.RESIDUAL_MAX_DEG:g} deg, the 'home' "
-                     f"threshold on the residual amplitude; dalpha_perm = {perm:.0f} deg)", fontsize=9)
-        ax.grid(alpha=0.3)
-        ax.legend(loc="upper left", bbox_to_anchor=(0.0, -0.2), fontsize=8, ncol=1, frameon=False)
-        ax = axes[r, 1]
-        a = min(e.A for e in shown)
-        b = max(e.B for e in shown)
-        if case == "small_far":
-            ax.set_xlim(a - 0.01, b + 0.02)
-            ax.set_yscale("symlog", linthresh=0.02)
-        else:
-            ax.set_xlim(0, float(df.attrs["params"]["t_c"]))
-        ax.axhline(1.0, color="k", lw=0.8, ls="--")
-        ax.set_ylabel("fence force / free-fall peak [-]")
-        ax.set_xlabel("time t [s]")
-        ax.set_title(f"{case}: normal force of the load on the fence\n" +
-                     ("zoomed on the contact, symmetric log scale above 0.02" if case == "small_far" else
-                      "whole cycle"), fontsize=9)
-        ax.grid(alpha=0.3)
-    fig.suptitle(f"The elements read off the two named cases' design maps (two-case pick, well-damped) against the "
-                 f"paper's 72/570, {WORKING_POINT}, m2 = 5 kg\n(for a whole load envelope: "
-                 f"results/design/recommended.json)")
+        _deflection_panel(axes[r, 0], case, df)
+        _force_panel(axes[r, 1], case, df, shown)
+    head = (f"The element to build, B2 = {env['B2']:g} N m s/rad, K2 = {env['K2']:g} N m/rad (the load envelope's "
+            "design, results/design/recommended.json), on the two named cases,\nagainst the paper's 72/570 and the "
+            "named cases' two-case and well-damped picks" if env else
+            "The elements read off the two named cases' design maps (two-case pick, well-damped pick) against the "
+            "paper's 72/570")
+    fig.suptitle(f"{head}; {WORKING_POINT}, m2 = 5 kg")
     return save(fig, out, "recommended.png")

@@ -1,11 +1,11 @@
 """REPORT.md section 2: the B2 x K2 design maps of the two named cases, their constraints (and why
-the residual-amplitude threshold means "the fence is home": residual_reason), the recommended
-element, the three elements run as single cycles, the paper's element against the constraints and
-how the choice moves with the threshold. No physics, no matplotlib.
+the residual-amplitude threshold means "the fence is home": residual_reason), the two-case pick and
+the well-damped pick read off them (comparisons to the element to build, the load envelope's design
+that opens the report), the elements run as single cycles, the paper's element against the
+constraints and how the picks move with the threshold. No physics, no matplotlib.
 """
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
@@ -37,7 +37,7 @@ def maps_section(I: ReportInputs) -> list[str]:
     n = D.both.size
     p = I.base
     a_min = min(I.T[f"{c}_flexible"].attrs["params"]["A"] for c in CASES)
-    L = ["## 2. Design maps over B2 x K2 and the recommended element", "",
+    L = ["## 2. Design maps over B2 x K2 and the two-case pick", "",
          f"Table `b2k2.parquet` (`sweeps/b2k2.yaml`): B2 = {D.B2.min():g} to {D.B2.max():g} N m s/rad "
          f"(step {D.B2[1] - D.B2[0]:g}), K2 = {D.K2.min():g} to {D.K2.max():g} N m/rad (step {D.K2[1] - D.K2[0]:g}), "
          f"{n} cells per case, at the paper's working point. A cell is **feasible** when, for the case(s) in "
@@ -69,7 +69,7 @@ def _failing(D: Design, case: str, code: int, thr: float):
 def _recommendation(I: ReportInputs) -> list[str]:
     D = I.D
     b, braw, bd = D.best, D.best_raw, D.damped
-    L = [f"**Recommendation: B2 = {b['B2']:g} N m s/rad, K2 = {b['K2']:g} N m/rad** (Psi = {b['Psi']:.2f}): "
+    L = [f"**Two-case pick: B2 = {b['B2']:g} N m s/rad, K2 = {b['K2']:g} N m/rad** (Psi = {b['Psi']:.2f}): "
          f"the lowest larger-of-the-two overload, {b['worst_overload']:.3f}, among the cells that keep every "
          f"constraint for both cases together with all 8 neighbours (so +-{D.B2[1] - D.B2[0]:g} N m s/rad and "
          f"+-{D.K2[1] - D.K2[0]:g} N m/rad of tolerance on the element keep them too). There: small_far overload "
@@ -80,77 +80,88 @@ def _recommendation(I: ReportInputs) -> list[str]:
     if braw and (braw["B2"], braw["K2"]) != (b["B2"], b["K2"]):
         notes.append(f"The lowest feasible cell without the neighbour margin is B2 = {braw['B2']:g}, "
                      f"K2 = {braw['K2']:g} (worst overload {braw['worst_overload']:.3f}); it sits on the edge "
-                     "of the feasible region or of the grid, and we do not recommend it.")
+                     "of the feasible region or of the grid, so the pick passes it over.")
     if b["K2"] >= D.K2[-2]:
         notes.append(f"The choice sits one step inside the grid's upper K2 bound ({D.K2.max():g} N m/rad): "
                      "the residual-amplitude constraint pushes towards stiff elements, and a wider K2 range "
                      "may hold a slightly lower overload (a stiffer element tends back to the rigid fence, so "
                      "not much lower).")
     if bd:
-        notes.append(f"**Well-damped alternative** (the paper's rule 0.7 <= Psi <= 1, §4.2): B2 = {bd['B2']:g}, "
-                     f"K2 = {bd['K2']:g} (Psi = {bd['Psi']:.2f}), worst overload {bd['worst_overload']:.3f} "
-                     f"({(bd['worst_overload'] / b['worst_overload'] - 1):+.1%} against the recommendation).")
+        notes.append(f"**Well-damped pick** (the same rule within the paper's 0.7 <= Psi <= 1, §4.2): "
+                     f"B2 = {bd['B2']:g}, K2 = {bd['K2']:g} (Psi = {bd['Psi']:.2f}), worst overload "
+                     f"{bd['worst_overload']:.3f} ({(bd['worst_overload'] / b['worst_overload'] - 1):+.1%} against "
+                     "the two-case pick).")
     for s_ in notes:
         L += [s_, ""]
     return L + _three_elements(I)
 
 
-def _three_elements(I: ReportInputs) -> list[str]:
-    """The paper's element, the recommended and the well-damped one run as single cycles."""
+#: the single cycles of the table under the picks: trajectory tag -> the element's name in the table
+#: (analysis.design_runs makes `<case>_envelope`, `<case>_recommended` and `<case>_well_damped`)
+CYCLE_ELEMENTS = (("envelope", "to build (load envelope)"), ("flexible", f"paper {PAPER_B2:g}/{PAPER_K2:g}"),
+                  ("recommended", "two-case pick"), ("well_damped", "well-damped pick"))
+
+
+def _cycle_row(res: Path, name: str, what: str, case: str) -> tuple[str, tuple]:
+    """One element's single cycle as a table row, and the swing of its deflection after the load has
+    left: (min, max, sign changes) [deg]."""
     from fencesweep.model import params as P
 
+    df = read_traj(res, name)
+    pr, rr = df.attrs["params"], df.attrs["results"]
+    after = df[df["t"] > float(rr["t_exit"])]
+    da = np.degrees((after["alpha"] - after["alpha_w"]).to_numpy())
+    swing = (float(da.min()), float(da.max()), int((np.diff(np.sign(da)) != 0).sum())) if len(da) else \
+        (math.nan, math.nan, 0)
+    row = (f"| {what} | {pr['B2']:g} / {pr['K2']:g} | {P.relative_damping(pr['B2'], pr['K2'], pr['I2']):.2f} "
+           f"| {case} | {rr['outcome']} | {rr['overload']:.3f} | {math.degrees(rr['deflection_max']):.1f} | "
+           f"{swing[0]:+.1f} / {swing[1]:+.1f} | {math.degrees(rr['residual_deflection']):.2f} | "
+           f"{math.degrees(rr['residual_amplitude']):.2f} | "
+           f"{math.degrees(float(df['alpha_dot'].iloc[-1])):.1f} | {rr['contact_time']:.3f} | {rr['x_exit']:.3f} |")
+    return row, swing
+
+
+def _three_elements(I: ReportInputs) -> list[str]:
+    """The element to build, the paper's element and the two picks of the maps run as single cycles
+    (those whose trajectories exist), then how the two picks compare after the impact."""
     D, b = I.D, I.D.best
     rows, swing = [], {}
-    for tag, what in (("flexible", f"paper {PAPER_B2:g}/{PAPER_K2:g}"), ("recommended", "recommended"),
-                      ("well_damped", "well-damped")):
+    for tag, what in CYCLE_ELEMENTS:
         for c in CASES:
-            if not traj_path(I.res, f"{c}_{tag}").exists():
-                continue
-            df = read_traj(I.res, f"{c}_{tag}")
-            pr, rr = df.attrs["params"], df.attrs["results"]
-            after = df[df["t"] > float(rr["t_exit"])]
-            da = np.degrees((after["alpha"] - after["alpha_w"]).to_numpy())
-            lo, hi = (float(da.min()), float(da.max())) if len(da) else (math.nan, math.nan)
-            swing[(tag, c)] = (lo, hi, int((np.diff(np.sign(da)) != 0).sum()) if len(da) else 0)
-            rows.append(f"| {what} | {pr['B2']:g} / {pr['K2']:g} | {P.relative_damping(pr['B2'], pr['K2'], pr['I2']):.2f} "
-                        f"| {c} | {rr['outcome']} | {rr['overload']:.3f} | {math.degrees(rr['deflection_max']):.1f} | "
-                        f"{lo:+.1f} / {hi:+.1f} | {math.degrees(rr['residual_deflection']):.2f} | "
-                        f"{math.degrees(rr['residual_amplitude']):.2f} | "
-                        f"{math.degrees(float(df['alpha_dot'].iloc[-1])):.1f} | {rr['contact_time']:.3f} | {rr['x_exit']:.3f} |")
+            if traj_path(I.res, f"{c}_{tag}").exists():
+                row, swing[(tag, c)] = _cycle_row(I.res, f"{c}_{tag}", what, c)
+                rows.append(row)
     if not rows:
         return []
-    L = ["The three elements run as single cycles (`recommended.png`):", "",
+    L = ["The elements run as single cycles on both named cases (`recommended.png`):", "",
          "| element | B2 / K2 | Psi | case | outcome | overload | deflection_max [deg] | deflection after "
          "the exit, min / max [deg] | residual deflection at t_c [deg] | residual amplitude [deg] | "
          "fence rate at t_c [deg/s] | contact [s] | x_exit [m] |",
          "|---|---|---|---|---|---|---|---|---|---|---|---|---|", *rows, ""]
     if D.damped and b["Psi"] < 0.5 and ("recommended", "small_far") in swing and ("well_damped", "small_far") in swing:
         sr, sd = swing[("recommended", "small_far")], swing[("well_damped", "small_far")]
-        L += [f"**What we would build:** the well-damped {D.damped['B2']:g} / {D.damped['K2']:g}. The rule's "
-              f"choice {b['B2']:g} / {b['K2']:g} is lower in overload by only "
+        L += [f"**The two picks against each other:** the two-case pick {b['B2']:g} / {b['K2']:g} is lower in "
+              f"overload than the well-damped {D.damped['B2']:g} / {D.damped['K2']:g} by only "
               f"{(1 - b['worst_overload'] / D.damped['worst_overload']):.1%}, less than the model's own uncertainty "
               f"(k1 and the friction coefficients are assumed, docs/model.md §12), but rings after the impact: "
               f"once small_far "
               f"has left, its deflection swings between {sr[0]:+.1f} and {sr[1]:+.1f} deg and changes sign {sr[2]} times "
-              f"before t_c, against {sd[0]:+.1f} to {sd[1]:+.1f} deg and {sd[2]} sign changes for the well-damped element "
-              "(`recommended.png`). Both keep every constraint for both cases.", ""]
+              f"before t_c, against {sd[0]:+.1f} to {sd[1]:+.1f} deg and {sd[2]} sign changes for the well-damped pick "
+              "(`recommended.png`). Both keep every constraint for both named cases.", ""]
     L += _envelope_pointer(I.res)
     return L
 
 
 def _envelope_pointer(res: Path) -> list[str]:
-    """Section 2's "recommended" is the two-case maps' choice: say where the envelope's is."""
-    path = res / "design" / "recommended.json"
-    if not path.exists():
+    """The picks of this section are the two named loads' choices: say which element is built."""
+    from fencesweep.report.analysis import envelope_element
+
+    env = envelope_element(res)
+    if not env or "B2" not in env or "K2" not in env:
         return []
-    rec = json.loads(path.read_text())
-    dv = rec.get("design_variables", {})
-    if rec.get("status") != "feasible" or "B2" not in dv or "K2" not in dv:
-        return []
-    return [f"\"Recommended\" in this section (the \"two-case pick\" of the figures) is the choice of the two named "
-            f"loads' maps. "
-            f"Over a whole load envelope (section 7) the element to build is B2 = {dv['B2']:g}, K2 = {dv['K2']:g} "
-            "([`design/recommended.json`](design/recommended.json)).", ""]
+    return [f"Both picks are read off the two named loads alone; they are comparisons to the element to build, the "
+            f"load envelope's B2 = {env['B2']:g}, K2 = {env['K2']:g} (the opening of this report and section 7, "
+            "[`design/recommended.json`](design/recommended.json)), where they are run on the envelope's loads too.", ""]
 
 
 # ------------------------------------------------------------------ the paper's element, the threshold
@@ -176,7 +187,7 @@ def paper_element_section(I: ReportInputs) -> list[str]:
              f"swings about its drive with an amplitude of {max(res_p.values()):.2f} deg at t_c; it would pass a "
              f"threshold of {math.ceil(max(res_p.values()) * 2) / 2:g} deg.")),
          "", "How the choice depends on the residual-amplitude threshold (same rule):", "",
-         "| residual threshold | feasible cells, both cases | recommended B2, K2 | worst overload | well-damped "
+         "| residual threshold | feasible cells, both cases | two-case pick B2, K2 | worst overload | well-damped "
          "(0.7 <= Psi <= 1) |", "|---|---|---|---|---|"]
     for t in sorted({0.5, 1.0, 1.5, 2.0, 3.0, thr}):
         Dt = design(I.b2k2, t)
