@@ -93,3 +93,8 @@ def test_a_trajectory_reads_its_attrs_with_plain_pandas(tmp_path):
     df = pd.read_parquet(path)
     assert df.attrs["params"]["B2"] == 72.0 and df.attrs["results"]["overload"] == pytest.approx(r["overload"])
     assert df.attrs == store.read_trajectory(path).attrs and df.attrs["units"]
+    old = tmp_path / "old.parquet"
+    t = pq.read_table(path)
+    pq.write_table(t.replace_schema_metadata({k: v for k, v in t.schema.metadata.items()
+                                              if k != store.PANDAS_ATTRS}), old)
+    assert store.read_trajectory(old).attrs == df.attrs  # written before the key: read from the schema

@@ -378,7 +378,7 @@ def read_table(path: str | Path):
     import pandas as pd
 
     df = pd.read_parquet(path)
-    if not df.attrs:
+    if "fencesweep" not in df.attrs:  # written before PANDAS_ATTRS (attrs empty, or a DataFrame's own)
         df.attrs.update(units=units(path), fencesweep=read_metadata(path))
     return df
 
@@ -425,7 +425,7 @@ def read_trajectory(path: str | Path):
     import pandas as pd
 
     df = pd.read_parquet(path)
-    if not df.attrs:  # written before PANDAS_ATTRS
+    if "params" not in df.attrs:  # written before PANDAS_ATTRS (attrs empty, or the DataFrame's own units)
         meta = read_metadata(path)
         df.attrs.update({k: meta.get(k) for k in ("params", "results", "versions")})
         df.attrs["units"] = {k: v for k, v in units(path).items() if v}
