@@ -1,11 +1,30 @@
 """Helpers shared by the test files, as fixtures (a test file never imports another).
 
-The modules of benchmarks/ (the independent reference model, make_reference) are importable
-in the tests through pytest's `pythonpath` setting in pyproject.toml.
+tests/ is on the tests' path (pytest's `pythonpath` setting in pyproject.toml): the independent
+reference (`reference`, tests/reference/) and `helpers` (tests/helpers.py: the stand-in for the
+engine and the small specs, which a test module also needs at import time or in another process)
+import from there; the fixtures below give helpers' engine and spec.
 """
 import math
 
 import pytest
+from helpers import SWEEP_SPEC, fake_engine, write_spec
+
+
+@pytest.fixture
+def faked_engine(monkeypatch):
+    """The API and the CLI run helpers.fake_engine in place of the engine (forked workers inherit
+    it); the fixture's value is that function."""
+    from fencesweep.model import simulate as model_simulate
+
+    monkeypatch.setattr(model_simulate, "simulate_resolved", fake_engine)
+    return fake_engine
+
+
+@pytest.fixture
+def sweep_spec_file(tmp_path):
+    """helpers.SWEEP_SPEC written to tmp_path / "s.yaml"; its path."""
+    return write_spec(tmp_path, SWEEP_SPEC, "s.yaml")
 
 
 def tip_depth(row, vals):

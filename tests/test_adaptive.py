@@ -1,4 +1,4 @@
-"""Adaptive maps (issue "Adaptive maps"): the refinement on maps whose answer is known in closed
+"""Adaptive maps: the refinement on maps whose answer is known in closed
 form, the load order and stop, and a small envelope study against its full grid."""
 from __future__ import annotations
 

@@ -1,4 +1,5 @@
-"""Contact laws and their calibration (docs/model.md §4, §6, §7) against closed forms and MODEL.md values."""
+"""Contact laws and their calibration (docs/model.md §4, §6, §7) against closed forms and the values
+that docs/model.md states."""
 import math
 
 import numpy as np

@@ -1,4 +1,4 @@
-"""`fencesweep design` (issue 10): the design section, the search, its verification, bad input."""
+"""`fencesweep design`: the design section, the search, its verification, bad input."""
 import json
 import math
 import textwrap

@@ -1,4 +1,4 @@
-"""Load envelopes (issue 10): sampling, loads that cannot start, the per-design-point judge."""
+"""Load envelopes: sampling, loads that cannot start, the per-design-point judge."""
 import itertools
 import math
 import textwrap

@@ -1,4 +1,4 @@
-"""Hard cases (issue 4): stiff and soft contacts, grazing and repeated impacts, stick-slip
+"""Hard cases: stiff and soft contacts, grazing and repeated impacts, stick-slip
 friction, tiny and heavy loads, extreme drives. Each must give finite results with status ok,
 no tunnelling (penetration far below the failure bound) and results that converge as the
 step shrinks: the default step and a 4x finer one agree in outcome and to 1e-3."""

@@ -6,7 +6,7 @@ parameter the scene uses shared a key, one of them would silently get the other'
 For every scene and every parameter of docs/model.md §12 (and the engine settings), hypothesis
 draws a parameter set and a second one that differs in that parameter alone, and checks
 
-* a parameter the scene uses (USES below, written from MODEL.md, not from params.py)
+* a parameter the scene uses (USES below, written from docs/model.md, not from params.py)
   changes the key;
 * whenever the keys are equal, the engine's results are equal too: the engine itself is
   the judge of what a model reads, so a parameter missing from USES is caught as well.

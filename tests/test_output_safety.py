@@ -3,15 +3,15 @@ store's atomic writes): one run per output at a time (a second refuses, or with 
 an output that cannot be written stops the run before it computes; a write that fails (ENOSPC)
 says what was kept, leaves no half-written file and the same command again finishes the table.
 
-The sweeps run a cheap deterministic stand-in for the engine (`engine`), in this process or,
-pickled by value, in another (`sweep_process`); `--wait` runs the real engine on 40 scenes.
+The sweeps run a cheap deterministic stand-in for the engine (tests/helpers.py's fake_engine;
+`engine` below holds it at a gate), in this process or, pickled by value, in another
+(`sweep_process`), on helpers.SWEEP_SPEC; `--wait` runs the real engine on 40 scenes.
 """
 import errno
 import os
 import subprocess
 import sys
 import tempfile
-import textwrap
 import time
 from pathlib import Path
 
@@ -22,8 +22,6 @@ import pytest
 import fencesweep
 from fencesweep import cli
 from fencesweep.errors import UsageError, WriteError
-from fencesweep.model import params as P
-from fencesweep.model import results as R
 from fencesweep.model import simulate as model_simulate
 from fencesweep.study.store import lock
 from fencesweep.study.sweep import output
@@ -31,60 +29,35 @@ from fencesweep.study.spec import file as specfile
 from fencesweep.study.store import table as store
 from fencesweep.study.sweep import pipeline as sweep
 from fencesweep.study.sweep import plan as PL
+from helpers import fake_engine
 
 cloudpickle.register_pickle_by_value(sys.modules[__name__])
 
 ROOT = Path(__file__).resolve().parents[1]
-SPEC = """
-    scene: cycle
-    params: {m1: 12.0}
-    grid:
-      drive: [rigid, flexible]
-      B2: {linspace: [0, 100, 5]}
-      K2: [200, 570]
-    cases: [small_far, long_near]
-    chunk_size: 4
-"""
-N_CHUNKS = 6  # 22 distinct runs in chunks of 4
+N_CHUNKS = 6  # helpers.SWEEP_SPEC: 22 distinct runs in chunks of 4
 GATE = "FENCESWEEP_TEST_GATE"
 
 
 def engine(vals, trajectory=False):
-    """Results from the model key; waits while the file named by $FENCESWEEP_TEST_GATE is missing
+    """helpers.fake_engine, which waits while the file named by $FENCESWEEP_TEST_GATE is missing
     (and says so by making GATE.waiting)."""
     gate = os.environ.get(GATE)
     if gate and not os.path.exists(gate):
         Path(gate + ".waiting").touch()  # the run is at its first model run: planned, its lock held
         while not os.path.exists(gate):
             time.sleep(0.01)
-    key = [(n, v) for n, v in P.model_key(vals)[1:] if n != "step_factor"]  # the re-runs at tol / 10 agree
-    x = sum((k + 1) * (v if isinstance(v, float) else len(v)) for k, (_, v) in enumerate(key))
-    out = {}
-    for k, (name, _, _) in enumerate(R.SCENE_RESULTS[vals["scene"]]):
-        if name == "outcome":
-            out[name] = R.OUTCOMES[int(x * 7) % 3]
-        elif name == "status":
-            out[name] = "ok"
-        elif name in ("n_impacts", "n_steps", "n_rejected"):
-            out[name] = int(x * 13) % 1000
-        elif name in ("safe", "deflection_ok"):
-            out[name] = bool(k % 2)
-        else:
-            out[name] = float((x * (k + 1)) % 7.0)
-    return out, None
+    return fake_engine(vals, trajectory)
 
 
 @pytest.fixture
-def spec_file(tmp_path):
-    path = tmp_path / "s.yaml"
-    path.write_text(textwrap.dedent(SPEC))
-    return path
+def spec_file(sweep_spec_file):
+    """helpers.SWEEP_SPEC in a file (conftest.py's sweep_spec_file)."""
+    return sweep_spec_file
 
 
 @pytest.fixture
-def fake(monkeypatch):
-    """The CLI and the API run `engine` (forked workers inherit it)."""
-    monkeypatch.setattr(model_simulate, "simulate_resolved", engine)
+def fake(faked_engine, monkeypatch):
+    """The CLI and the API run the stand-in engine (forked workers inherit it), the gate open."""
     monkeypatch.delenv(GATE, raising=False)
 
 

@@ -1,4 +1,4 @@
-"""Bad input gets a clear error naming the parameter, the value and what is allowed (issue 2)."""
+"""Bad input gets a clear error naming the parameter, the value and what is allowed."""
 import math
 
 import pytest

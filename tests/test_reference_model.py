@@ -1,13 +1,13 @@
-"""Fast sanity tests of the independent reference model (benchmarks/reference.py).
+"""Fast sanity tests of the independent reference model (tests/reference/model.py).
 
-They check the reference against MODEL.md's closed forms and stated numbers, so
+They check the reference against the closed forms and stated numbers of docs/model.md, so
 that it can be trusted as the yardstick of the engine.  Total run time a few s.
 """
 
 import math
 
 import pytest
-import reference as ref  # benchmarks/reference.py (pyproject's pytest pythonpath)
+from reference import model as ref  # tests/reference/model.py (pyproject's pytest pythonpath)
 
 G = 9.81
 
@@ -224,3 +224,20 @@ def test_contact_diagnostics_per_kind():
     deepest = max(r["max_pen_fence"], r["max_pen_tip"], r["max_pen_rail"])
     assert deepest == pytest.approx(r["max_penetration"], rel=1e-9)
     assert r["max_pen_rail"] > 1e-4
+
+
+# --- independence ------------------------------------------------------------------------
+
+def test_the_reference_imports_nothing_of_the_engine():
+    """The model, its data's reader and its tools share no code with the engine (only compare.py,
+    the judge, applies the package's agreement metric): read with `ast`, nothing imported."""
+    import ast
+    from pathlib import Path
+
+    import reference
+
+    for name in ("__init__.py", "model.py", "make.py", "find_grazes.py"):
+        tree = ast.parse((Path(reference.__file__).parent / name).read_text())
+        imported = {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
+        imported |= {n.module or "" for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)}
+        assert not {m for m in imported if m.split(".")[0] == "fencesweep"}, name

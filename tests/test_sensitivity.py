@@ -1,4 +1,4 @@
-"""`fencesweep sensitivity` (issue 10, item 4): the section's checks, and indices from a tiny sample."""
+"""`fencesweep sensitivity`: the section's checks, and indices from a tiny sample."""
 import textwrap
 
 import pandas as pd

@@ -11,20 +11,12 @@ import yaml
 import fencesweep
 from fencesweep import cli, resources
 from fencesweep.errors import UsageError
-from fencesweep.model import simulate as model_simulate
 from fencesweep.study import api
 from fencesweep.study.sweep import estimate
 from fencesweep.study.sweep import sample as verify_sample
 from fencesweep.study.spec import spec as S
-
-#: 3 x 3 B2 x K2 over both named cases: 18 cycles of the real engine
-SPEC = """
-    params: {drive: flexible}
-    grid:
-      B2: [15, 72, 140]
-      K2: [570, 1200, 2075]
-    cases: [small_far, long_near]
-"""
+from helpers import GRID_SPEC as SPEC  # 3 x 3 B2 x K2 over both named cases: 18 cycles of the real engine
+from helpers import write_spec
 
 #: 2 design points over 2^3 x 2 corners (L, A, dP across; m1) plus 2 Sobol loads: 36 cycles
 ENVELOPE = """
@@ -40,14 +32,8 @@ ENVELOPE = """
 """
 
 
-def write(tmp_path, text, name="spec.yaml"):
-    path = tmp_path / name
-    path.write_text(textwrap.dedent(text))
-    return path
-
-
 def test_grid_returns_the_table_the_cli_writes(tmp_path):
-    path = write(tmp_path, SPEC)
+    path = write_spec(tmp_path, SPEC)
     df = fencesweep.grid(path, out=tmp_path / "api.parquet", jobs=1)
     assert cli.main(["grid", str(path), "--out", str(tmp_path / "cli.parquet"), "--jobs", "1", "--quiet"]) == 0
     pd.testing.assert_frame_equal(df, pd.read_parquet(tmp_path / "cli.parquet"))
@@ -68,7 +54,7 @@ def test_grid_returns_the_table_the_cli_writes(tmp_path):
 
 
 def test_envelope_points_are_reachable_from_the_table(tmp_path):
-    path = write(tmp_path, ENVELOPE)
+    path = write_spec(tmp_path, ENVELOPE)
     df = fencesweep.grid(path, out=tmp_path / "env.parquet", jobs=1)
     assert df.attrs["points_path"] == str(tmp_path / "env_points.parquet")
     pts = fencesweep.points(df)
@@ -87,7 +73,7 @@ def test_envelope_points_are_reachable_from_the_table(tmp_path):
     # makes pd.concat raise), and the per-load tables of two studies still concatenate
     both = pd.concat([df, fencesweep.grid(path, out=tmp_path / "env2.parquet", jobs=1)])
     assert len(both) == 72 and fencesweep.points(df.copy()).equals(pts)
-    plain = fencesweep.grid(write(tmp_path, SPEC, "plain.yaml"), out=tmp_path / "plain.parquet", jobs=1)
+    plain = fencesweep.grid(write_spec(tmp_path, SPEC, "plain.yaml"), out=tmp_path / "plain.parquet", jobs=1)
     with pytest.raises(UsageError, match="no per-design-point table"):
         fencesweep.points(plain)
     with pytest.raises(UsageError, match="plain_points.parquet does not exist"):
@@ -95,7 +81,7 @@ def test_envelope_points_are_reachable_from_the_table(tmp_path):
 
 
 def test_estimate_is_the_dry_run_and_writes_nothing(tmp_path, capsys):
-    path = write(tmp_path, SPEC)
+    path = write_spec(tmp_path, SPEC)
     out = tmp_path / "t.parquet"
     est = fencesweep.estimate(path, out=out, jobs=2)
     assert isinstance(est, estimate.Estimate)
@@ -114,7 +100,7 @@ def test_estimate_is_the_dry_run_and_writes_nothing(tmp_path, capsys):
     assert printed[-1].startswith("  estimated time on 1 job: ") and printed[-1].endswith(" for 18 runs and 16 re-runs")
     assert printed[-2].startswith("  verification: up to 16 of the 18 runs re-run at tol/10")
     # another spec's table at the output: a real run would stop, and the estimate says why
-    fencesweep.grid(write(tmp_path, SPEC.replace("B2: [15, 72, 140]", "B2: [15, 72]"), "other.yaml"), out=out, jobs=1)
+    fencesweep.grid(write_spec(tmp_path, SPEC.replace("B2: [15, 72, 140]", "B2: [15, 72]"), "other.yaml"), out=out, jobs=1)
     est = fencesweep.estimate(path, out=out, backend="dask")
     assert "holds the results of another spec" in est.stop and est.jobs is None
     assert est.notes == [f"a real run would stop before it starts: {est.stop}"]
@@ -124,7 +110,7 @@ def test_estimate_is_the_dry_run_and_writes_nothing(tmp_path, capsys):
 
 def test_estimate_of_a_spec_too_large_to_plan_counts_it_only(tmp_path, monkeypatch):
     monkeypatch.setattr(resources, "available_memory", lambda: 10 * 160)  # 10 scenes' worth
-    est = fencesweep.estimate(write(tmp_path, SPEC), out=tmp_path / "t.parquet")
+    est = fencesweep.estimate(write_spec(tmp_path, SPEC), out=tmp_path / "t.parquet")
     assert est.n_models is None and est.n_scenes == 18 and "expands to 18 scenes" in est.stop
     assert est.lines()[1] == "  distinct model runs: not counted (planning them would not fit in memory)"
 
@@ -155,25 +141,16 @@ def test_bad_input_raises_a_clear_error_and_writes_nothing(tmp_path, spec, error
     (lambda p, t: fencesweep.sensitivity(p, out=t / "s.parquet"), "has no sensitivity: section"),
 ])
 def test_bad_arguments_raise_usage_errors_before_anything_runs(tmp_path, call, words):
-    path = write(tmp_path, SPEC)
+    path = write_spec(tmp_path, SPEC)
     with pytest.raises(UsageError, match=words):
         call(path, tmp_path)
     assert [p.name for p in tmp_path.iterdir()] == ["spec.yaml"]
 
 
-def fake_engine(vals, trajectory=False):
-    from fencesweep.model.results import SCENE_RESULTS
-
-    res = {name: 1.0 for name, _, _ in SCENE_RESULTS[vals["scene"]]}
-    res.update(outcome="scraped", status="ok", n_impacts=1, n_steps=10, n_rejected=0, safe=True, deflection_ok=True)
-    return res, None
-
-
-def test_an_interrupted_grid_says_what_is_saved_and_resumes(tmp_path, monkeypatch):
+def test_an_interrupted_grid_says_what_is_saved_and_resumes(tmp_path, monkeypatch, faked_engine):
     from fencesweep.study.store import table as store
 
-    monkeypatch.setattr(model_simulate, "simulate_resolved", fake_engine)
-    path = write(tmp_path, SPEC + "    chunk_size: 3\n")
+    path = write_spec(tmp_path, SPEC + "    chunk_size: 3\n")
     real_write, written = store.write_chunk, []
 
     def dying_write(*a, **k):

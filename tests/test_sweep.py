@@ -1,7 +1,8 @@
 """The sweep layer: deduplication, parallel determinism, streaming chunks, resume, metadata, Dask.
 
-Most tests run against `fake_engine`, a cheap deterministic function of the parameters,
-passed as `simulate=` (pickled by value, so loky workers need not import this file).
+Most tests run against `fake_engine` (tests/helpers.py), a cheap deterministic function of the
+parameters, passed as `simulate=` (pickled by value, so loky workers need not import a test file),
+on SPEC (helpers.SWEEP_SPEC).
 `test_real_engine_*` run the real engine on a few scenes.
 """
 import gc
@@ -33,32 +34,12 @@ from fencesweep.study.sweep import verify as V
 from fencesweep.model import params as P
 from fencesweep.model import results as R
 from fencesweep.study.spec import spec as S
-from fencesweep.study.spec import file as specfile
 from fencesweep import resources
 from fencesweep.errors import UsageError
+from helpers import SWEEP_SPEC as SPEC, fake_engine
+from helpers import load_spec as spec
 
 cloudpickle.register_pickle_by_value(sys.modules[__name__])
-
-
-def fake_engine(vals, trajectory=False):
-    """A deterministic stand-in for api.simulate_resolved: results from the used parameters."""
-    key = P.model_key(vals)
-    x = sum((k + 1) * (v if isinstance(v, float) else len(v)) for k, (_, v) in enumerate(key[1:]))
-    out = {}
-    for k, (name, _, _) in enumerate(R.SCENE_RESULTS[vals["scene"]]):
-        if name == "outcome":
-            out[name] = R.OUTCOMES[int(x * 7) % 3]
-        elif name == "status":
-            out[name] = "ok"
-        elif name in ("n_impacts", "n_steps", "n_rejected"):
-            out[name] = int(x * 13) % 1000
-        elif name in ("safe", "deflection_ok"):
-            out[name] = math.sin(x + k) > 0
-        elif name == "t_first_contact" and int(x) % 5 == 0:
-            out[name] = math.nan
-        else:
-            out[name] = math.sin(x * (k + 1)) * 10.0 ** (k % 5)
-    return out, None
 
 
 class Counting:
@@ -73,22 +54,6 @@ class Counting:
             return real(scene, vals_list, simulate)
 
         monkeypatch.setattr(runs, "run_models", counting)
-
-
-SPEC = """
-    scene: cycle
-    params: {m1: 12.0}
-    grid:
-      drive: [rigid, flexible]
-      B2: {linspace: [0, 100, 5]}
-      K2: [200, 570]
-    cases: [small_far, long_near]
-    chunk_size: 4
-"""
-
-
-def spec(text=SPEC) -> S.Spec:
-    return specfile.loads(textwrap.dedent(text))
 
 
 def run(tmp_path, name="t.parquet", text=SPEC, **kw) -> sweep.Outcome:
@@ -358,13 +323,14 @@ def test_chunks_start_with_the_most_work():
 
 def test_progress_bar_off_shows_nothing_and_imports_no_tqdm():
     """An off bar (a planning pass under 20 000 scenes, --quiet) takes a bar's calls without
-    importing tqdm (~35 ms of the planning helper the parent waits for); an on bar is tqdm's."""
+    importing tqdm (~35 ms of the planning helper the parent waits for); an on bar off a terminal
+    (stderr a pipe here) prints lines (tests/test_messages.py), without tqdm either."""
     code = ("import sys; from fencesweep.study.sweep import progress as P; b = P.bar(5, 'x', False); b.update(2); "
             "b.total += 1; b.close(); assert 'tqdm' not in sys.modules, 'tqdm imported'; "
-            "on = P.bar(5, 'x', True); on.close(); print(type(on).__module__)")
+            "on = P.bar(5, 'x', True); on.close(); print(type(on).__name__, 'tqdm' in sys.modules)")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
-    assert r.stdout.strip().startswith("tqdm")
+    assert r.stdout.split() == ["Lines", "False"]
 
 
 def test_chunk_name_depends_on_spec_and_contents():
@@ -449,8 +415,7 @@ def test_process_with_workers_killed_mid_sweep_then_rerun(tmp_path, monkeypatch)
     assert out.read_bytes() == run(tmp_path, "ref.parquet").out.read_bytes()
 
 
-def test_cli_interrupted_names_the_saved_chunks(tmp_path, monkeypatch, capsys):
-    monkeypatch.setattr(api, "simulate_resolved", fake_engine)
+def test_cli_interrupted_names_the_saved_chunks(tmp_path, monkeypatch, faked_engine, capsys):
     path = tmp_path / "s.yaml"
     path.write_text(textwrap.dedent(SPEC) + f"output: {tmp_path / 'cli.parquet'}\n")
     real_write = store.write_chunk
@@ -544,8 +509,7 @@ def test_dask_backend_on_a_local_cluster_matches_local_run(tmp_path):
 
 
 # ------------------------------------------------------------------ CLI
-def test_cli_grid_dry_run_and_run(tmp_path, monkeypatch, capsys):
-    monkeypatch.setattr(api, "simulate_resolved", fake_engine)
+def test_cli_grid_dry_run_and_run(tmp_path, faked_engine, capsys):
     path = tmp_path / "s.yaml"
     path.write_text(textwrap.dedent(SPEC) + f"output: {tmp_path / 'cli.parquet'}\n")
     assert cli.main(["grid", str(path), "--dry-run", "--jobs", "2"]) == 0
@@ -560,8 +524,7 @@ def test_cli_grid_dry_run_and_run(tmp_path, monkeypatch, capsys):
     assert "wrote" in capsys.readouterr().err and other.exists()
 
 
-def test_cli_grid_refuses_to_replace_another_specs_table(tmp_path, monkeypatch, capsys):
-    monkeypatch.setattr(api, "simulate_resolved", fake_engine)
+def test_cli_grid_refuses_to_replace_another_specs_table(tmp_path, faked_engine, capsys):
     a, b, out = tmp_path / "A.yaml", tmp_path / "B.yaml", tmp_path / "T.parquet"
     a.write_text(textwrap.dedent(SPEC))
     b.write_text(textwrap.dedent(SPEC.replace("m1: 12.0", "m1: 13.0")))
@@ -582,8 +545,7 @@ def test_cli_grid_refuses_to_replace_another_specs_table(tmp_path, monkeypatch, 
     assert store.read_metadata(out)["spec_path"] == str(b)
 
 
-def test_cli_grid_refuses_to_replace_a_file_it_did_not_write(tmp_path, monkeypatch, capsys):
-    monkeypatch.setattr(api, "simulate_resolved", fake_engine)
+def test_cli_grid_refuses_to_replace_a_file_it_did_not_write(tmp_path, faked_engine, capsys):
     path, out = tmp_path / "s.yaml", tmp_path / "mine.parquet"
     path.write_text(textwrap.dedent(SPEC))
     out.write_bytes(b"not a sweep table")

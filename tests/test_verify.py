@@ -3,8 +3,8 @@ first, re-run at tol / 10 and compared; the record in the table's metadata (`fen
 the API's attrs and the command's summary; --verify N, --no-verify; the same record whatever
 --jobs and after a resume.
 
-Most tests run a cheap deterministic stand-in for the engine (`engine`, below); `test_real_*`
-run the real one on a few scenes.
+Most tests run a cheap deterministic stand-in for the engine (`fake_engine`, tests/helpers.py);
+`test_real_*` run the real one on a few scenes.
 """
 import json
 import math
@@ -16,17 +16,15 @@ import pytest
 
 import fencesweep
 from fencesweep import cli
-from fencesweep.model import params as P
-from fencesweep.model import results as R
 from fencesweep.model import simulate as model_simulate
 from fencesweep.study.sweep import accuracy
 from fencesweep.study.sweep import compute
-from fencesweep.study.spec import file as specfile
 from fencesweep.study.store import table as store
 from fencesweep.study.sweep import pipeline as sweep
 from fencesweep.study.sweep import plan as PL
 from fencesweep.study.sweep import verify as V
 from fencesweep.study.sweep import sample as VS
+from helpers import GRID_SPEC, fake_engine, load_spec, write_spec
 
 #: flexible only, every scene its own run: 2 cases x 20 x 20 = 800 runs (a default sample of 16)
 SPEC = """
@@ -39,49 +37,24 @@ SPEC = """
 """
 
 
-def engine(vals, trajectory=False, drift=0.0):
-    """Results from the model key without step_factor (so a re-run at tol / 10 agrees exactly),
-    except peak_force, which moves by `drift` (relative) when step_factor is not 1."""
-    key = [(n, v) for n, v in P.model_key(vals)[1:] if n != "step_factor"]
-    x = sum((k + 1) * (v if isinstance(v, float) else len(v)) for k, (_, v) in enumerate(key)) / 1000
-    out = {}
-    for k, (name, _, _) in enumerate(R.SCENE_RESULTS[vals["scene"]]):
-        if name == "outcome":
-            out[name] = R.OUTCOMES[int(x * 7000) % 3]
-        elif name == "status":
-            out[name] = "ok"
-        elif name in ("n_impacts", "n_steps", "n_rejected"):
-            out[name] = int(x * 13000) % 1000
-        elif name in ("safe", "deflection_ok"):
-            out[name] = math.sin(x + k) > 0
-        elif name == "t_first_contact":
-            out[name] = math.nan if int(x * 1000) % 5 == 0 else abs(math.sin(7 * x))
-        else:
-            out[name] = abs(math.sin(x * (k + 11) * 1000)) * 10.0 ** (k % 3)
-    out["freefall_force"] = 100.0
-    if vals["step_factor"] != 1.0:
-        out["peak_force"] *= 1 + drift
-    return out, None
-
-
 def drifting(vals, trajectory=False):
-    return engine(vals, trajectory, drift=0.01)
+    return fake_engine(vals, trajectory, drift=0.01)
 
 
 def flipping(vals, trajectory=False):
     """The re-run of every run whose B2 is 0 has another outcome."""
-    out, _ = engine(vals)
+    out, _ = fake_engine(vals)
     if vals["step_factor"] != 1.0 and vals["B2"] == 0.0:
         out["outcome"] = "timeout" if out["outcome"] != "timeout" else "escaped"
     return out, None
 
 
 def spec(text=SPEC):
-    return specfile.loads(textwrap.dedent(text))
+    return load_spec(text)
 
 
 def run(tmp_path, name="t.parquet", text=SPEC, **kw):
-    kw.setdefault("simulate", engine)
+    kw.setdefault("simulate", fake_engine)
     kw.setdefault("jobs", 1)
     return sweep.run_sweep(spec(text), tmp_path / name, **kw)
 
@@ -174,7 +147,7 @@ def test_resumed_run_writes_the_same_record(tmp_path, monkeypatch):
 def test_no_verify_writes_no_record(tmp_path, reruns, monkeypatch, capsys):
     res = run(tmp_path, verify=False)
     assert res.verify is None and "verify" not in store.read_metadata(res.out) and reruns == []
-    monkeypatch.setattr(model_simulate, "simulate_resolved", engine)
+    monkeypatch.setattr(model_simulate, "simulate_resolved", fake_engine)
     path = tmp_path / "s.yaml"
     path.write_text(textwrap.dedent(SPEC))
     out = tmp_path / "cli.parquet"
@@ -189,7 +162,7 @@ def test_verify_n_reruns_n(tmp_path, reruns, monkeypatch, capsys):
     assert len(reruns[-1]) == 40 == res.verify["n"] and res.verify["sample"]["rule"] == "requested: 40 runs"
     assert res.verify["sample"]["extremes"] == 20  # half of them
     assert run(tmp_path, "all.parquet", verify=10**6).verify["n"] == 800  # at most every run
-    monkeypatch.setattr(model_simulate, "simulate_resolved", engine)
+    monkeypatch.setattr(model_simulate, "simulate_resolved", fake_engine)
     path = tmp_path / "s.yaml"
     path.write_text(textwrap.dedent(SPEC))
     out = str(tmp_path / "cli.parquet")
@@ -203,8 +176,7 @@ def test_verify_n_reruns_n(tmp_path, reruns, monkeypatch, capsys):
         fencesweep.grid(path, out=out, verify=0)
 
 
-def test_dry_run_counts_the_verification(tmp_path, monkeypatch, capsys):
-    monkeypatch.setattr(model_simulate, "simulate_resolved", engine)
+def test_dry_run_counts_the_verification(tmp_path, faked_engine, capsys):
     path = tmp_path / "s.yaml"
     path.write_text(textwrap.dedent(SPEC))
     assert cli.main(["grid", str(path), "--dry-run", "--jobs", "1", "--verify", "30"]) == 0
@@ -264,20 +236,15 @@ def test_relative_difference_uses_the_validation_floors():
     assert accuracy.relative_difference(0.0, 1e-4, "deflection_max", 0.0) == pytest.approx(1e-2)
     assert math.isnan(accuracy.relative_difference(math.nan, 1.0, "t_exit", 0.0))
     assert accuracy.relative_difference(math.inf, math.inf, "t_exit", 0.0) == 0.0
-    import test_validation  # noqa: F401  (benchmarks read the floors from it)
+    from reference import compare  # the validation's judge (tests/reference/compare.py): benchmarks read the floors
 
-    assert (test_validation.FORCE_FLOOR, test_validation.ANGLE_FLOOR, test_validation.TIME_FLOOR) == \
+    assert (compare.FORCE_FLOOR, compare.ANGLE_FLOOR, compare.TIME_FLOOR) == \
         (accuracy.FORCE_FLOOR, accuracy.ANGLE_FLOOR, accuracy.TIME_FLOOR)
 
 
 # ------------------------------------------------------------------ the real engine
 def test_real_cycle_sweep_verifies_itself(tmp_path, capsys):
-    path = tmp_path / "s.yaml"
-    path.write_text(textwrap.dedent("""
-        params: {drive: flexible}
-        grid: {B2: [15, 72, 140], K2: [570, 1200, 2075]}
-        cases: [small_far, long_near]
-    """))
+    path = write_spec(tmp_path, GRID_SPEC, "s.yaml")
     df = fencesweep.grid(path, out=tmp_path / "t.parquet", jobs=1)
     rec = df.attrs["fencesweep"]["verify"]
     assert rec == df.attrs["run"]["verify"] and rec["n"] >= 16 and rec["of"] == 18

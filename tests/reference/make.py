@@ -1,20 +1,19 @@
 """Compute the reference results of the validation set.
 
-    python benchmarks/make_reference.py                 # all scenes not yet in the CSV
-    python benchmarks/make_reference.py --force         # recompute everything
-    python benchmarks/make_reference.py --only ID[,ID]  # recompute these scenes
-    python benchmarks/make_reference.py --jobs 2 --rtol 1e-10 --method DOP853
+    python tests/reference/make.py                 # all scenes not yet in the CSV
+    python tests/reference/make.py --force         # recompute everything
+    python tests/reference/make.py --only ID[,ID]  # recompute these scenes
+    python tests/reference/make.py --jobs 2 --rtol 1e-10 --method DOP853
 
-Reads benchmarks/validation_scenes.yaml, runs benchmarks/reference.py (scene
-`cycle`) for every scene and writes benchmarks/reference_results.csv: one row per
-scene with its id, every MODEL.md §12 parameter as resolved (defaults <- case <-
-overrides; floats at full precision, so that `row_params` gives another
-implementation exactly the same problem), the MODEL.md §11 results, per contact kind
-of §5 (fence, tip, rail) whether it touched, its maximum penetration and the minimum
-gap (reference.contact_diagnostics), the cost (n_rhs, n_steps, wall_time) and how
-the row was made (method, rtol, versions, hash of reference.py and of the scene).
-The CSV is rewritten after every finished scene, so an interrupted run resumes
-where it stopped.
+Reads tests/reference/scenes.yaml, runs the reference model (tests/reference/model.py, scene
+`cycle`) for every scene and writes tests/reference/results.csv: one row per scene with its
+id, every docs/model.md §12 parameter as resolved (defaults <- case <- overrides; floats at
+full precision, so that `reference.row_params` gives another implementation exactly the same
+problem), the docs/model.md §11 results, per contact kind of §5 (fence, tip, rail) whether it
+touched, its maximum penetration and the minimum gap (model.contact_diagnostics), the cost
+(n_rhs, n_steps, wall_time) and how the row was made (method, rtol, versions, hash of the
+model's file and of the scene). The CSV is rewritten after every finished scene, so an
+interrupted run resumes where it stopped.
 """
 
 from __future__ import annotations
@@ -26,21 +25,18 @@ import math
 import os
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import scipy
-import yaml
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, HERE)
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests/: the package `reference`
 
-import reference  # noqa: E402
+from reference import PARAM_COLS, RESULTS, SCENES, load_scenes, model, scene_hash  # noqa: E402
 
-SCENES = os.path.join(HERE, "validation_scenes.yaml")
-OUT = os.path.join(HERE, "reference_results.csv")
+OUT = str(RESULTS)
 
-PARAM_COLS = list(reference.DEFAULTS)
 RESULT_COLS = [
     "outcome", "t_exit", "peak_force", "t_peak", "peak_rail_force", "freefall_force",
     "overload", "safe", "deflection_max", "deflection_ok", "residual_deflection",
@@ -49,49 +45,13 @@ RESULT_COLS = [
     "t_rail", "x_exit", "phi_exit", "max_penetration", "status", "stages",
     "t_release", "q", "n_rhs", "n_steps", "n_segments", "n_scan_events",
     "n_mode_fixes", "n_retries", "wall_time",
-] + [f"{q}_{kind}" for kind in reference.CONTACT_KINDS
+] + [f"{q}_{kind}" for kind in model.CONTACT_KINDS
      for q in ("touch", "max_pen", "min_gap")]
-
-
-def row_params(row):
-    """The fully resolved MODEL.md §12 parameters of one CSV row, as keyword arguments.
-
-    Every §12 value the reference ran with (defaults, case and overrides already
-    applied, I2 and t_max explicit), so that another implementation given these solves
-    exactly the reference's problem.  k_lin is passed only under the linear law (under
-    the Hertz law it is unused).  `row` is a mapping (a dict or a pandas Series).
-    """
-    out = {}
-    for k in PARAM_COLS:
-        val = row[k]
-        if k in reference.STRING_PARAMS:
-            out[k] = str(val)
-        elif k == "k_lin" and row["contact_law"] != "linear":
-            continue
-        else:
-            out[k] = float(val)
-    return out
 
 
 def _file_hash(path):
     with open(path, "rb") as fh:
         return hashlib.sha256(fh.read()).hexdigest()[:12]
-
-
-def load_scenes(path=SCENES):
-    with open(path) as fh:
-        scenes = yaml.safe_load(fh)["scenes"]
-    ids = [s["id"] for s in scenes]
-    dup = {i for i in ids if ids.count(i) > 1}
-    if dup:
-        raise ValueError(f"duplicate scene ids: {sorted(dup)}")
-    return scenes
-
-
-def scene_hash(scene):
-    """Hash of a scene's overrides (everything but its id), as the CSV records it."""
-    overrides = {k: v for k, v in scene.items() if k != "id"}
-    return hashlib.sha256(json.dumps(overrides, sort_keys=True).encode()).hexdigest()[:12]
 
 
 def run_scene(scene, method, rtol):
@@ -100,9 +60,9 @@ def run_scene(scene, method, rtol):
     row = {"id": scene["id"], "case": overrides.get("case", ""),
            "overrides": json.dumps(overrides, sort_keys=True)}
     try:
-        p = reference.resolve_params(overrides)
+        p = model.resolve_params(overrides)
         row.update({k: p[k] for k in PARAM_COLS})
-        res = reference.simulate_reference(overrides, method=method, rtol=rtol)
+        res = model.simulate_reference(overrides, method=method, rtol=rtol)
         row.update({k: res.get(k, math.nan) for k in RESULT_COLS})
     except Exception as exc:  # invalid input or a bug: record it, do not stop the set
         row.update({"outcome": "invalid", "status": f"error: {exc!r}"})
@@ -110,7 +70,7 @@ def run_scene(scene, method, rtol):
         "ref_method": method, "ref_rtol": rtol,
         "ref_atol": "rtol*STATE_SCALE",
         "scene_hash": scene_hash(scene),
-        "reference_py_hash": _file_hash(os.path.join(HERE, "reference.py")),
+        "reference_py_hash": _file_hash(model.__file__),
         "scipy": scipy.__version__, "numpy": np.__version__,
         "python": sys.version.split()[0],
     })
@@ -125,7 +85,7 @@ def main(argv=None):
     ap.add_argument("--jobs", type=int, default=1, help="parallel workers (joblib)")
     ap.add_argument("--rtol", type=float, default=1e-10)
     ap.add_argument("--method", default="DOP853")
-    ap.add_argument("--scenes", default=SCENES)
+    ap.add_argument("--scenes", default=str(SCENES))
     ap.add_argument("--out", default=OUT)
     args = ap.parse_args(argv)
 

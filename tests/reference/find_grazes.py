@@ -1,13 +1,13 @@
 """Find the grazing scenes of the validation set with the reference (never the engine).
 
-    python benchmarks/find_grazes.py                   # all grazes
-    python benchmarks/find_grazes.py --only tip_edge
+    python tests/reference/find_grazes.py                   # all grazes
+    python tests/reference/find_grazes.py --only tip_edge
 
-For each contact kind of MODEL.md §5 -- corner-fence ("fence"), tip-edge ("tip"),
+For each contact kind of docs/model.md §5 -- corner-fence ("fence"), tip-edge ("tip"),
 corner-rail ("rail") -- and for a tip clipping a corner (tip and corner together),
 one scene parameter is bisected between a value at which the
 reference sees a contact of that kind and one at which it does not
-(reference.contact_diagnostics: touch_<kind>).  The signed clearance
+(model.contact_diagnostics: touch_<kind>).  The signed clearance
 c = min_gap_<kind> - max_pen_<kind> (the closest approach, negative = the deepest
 penetration) is smooth in the parameter on either side of the transition, so secant
 steps from the bisection's runs on the touching side reach a penetration of about
@@ -17,22 +17,20 @@ both values, their penetration or gap, and the same at rtol RTOL_CHECK, to show 
 the reference's own error is far below the depth (a graze the reference cannot tell
 from a miss is no test).
 
-It writes nothing: the values go into benchmarks/validation_scenes.yaml by hand, with
+It writes nothing: the values go into tests/reference/scenes.yaml by hand, with
 a comment that says how they were found.
 """
 from __future__ import annotations
 
 import argparse
 import math
-import os
 import sys
 import time
+from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests/: the package `reference`
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, HERE)
-
-import reference  # noqa: E402
+from reference import model  # noqa: E402
 
 RTOL = 1e-10            # the reference's tolerance for the CSV
 RTOL_CHECK = 1e-11      # a second, tighter run of the chosen values
@@ -80,7 +78,7 @@ PEAK_CHECK = 1e-6       # peak_force at RTOL and RTOL_CHECK must agree to this (
 
 def clearance(scene, kind, rtol=RTOL):
     """(signed clearance c [m], touched, result) of one reference run."""
-    r = reference.simulate_reference(scene, rtol=rtol)
+    r = model.simulate_reference(scene, rtol=rtol)
     if r["status"] != "ok":
         raise RuntimeError(f"reference failed for {scene}: {r['status']}")
     # one of the two is 0; the geometric clearance can dip below 0 by less than the

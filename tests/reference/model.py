@@ -1,8 +1,10 @@
 """Independent reference implementation of the fencesweep sorting-cycle model.
 
-Built from the specification ``MODEL.md`` only (sections cited as "§n"), with a
-plain Python/NumPy right-hand side integrated by :func:`scipy.integrate.solve_ivp`.
-It exists to measure the error of the fast engine, so it shares no code with it.
+Written from the model's specification alone (sections cited as "§n": those of
+docs/model.md, which keeps the specification's numbers), with a plain Python/NumPy
+right-hand side integrated by :func:`scipy.integrate.solve_ivp`.  It exists to measure
+the error of the fast engine, so it shares no code with it: it imports nothing from
+fencesweep (tests/test_reference_model.py checks that).
 
 Method
 ------
@@ -37,7 +39,7 @@ G_ACC = 9.81  # [m/s^2] §6
 # Parameters (§12) and named cases
 # ---------------------------------------------------------------------------
 
-# MODEL.md §12 defaults.  The two angles are exact: swing 42 deg (the table's
+# docs/model.md §12 defaults.  The two angles are exact: swing 42 deg (the table's
 # 0.7330383 rad is this value rounded) and dalpha_perm 15 deg (0.2618 rounded).
 DEFAULTS = {
     "v": 2.0, "P_max": 0.7, "mu1": 0.4, "mu2": 0.25, "L": 0.7, "A": 0.1,
@@ -338,7 +340,7 @@ def _maximise(fun, ts):
 def _impact_core(m1, w, R, I2, B2, K2, fence, law, method, rtol, atol):
     """Material point m1 against a fence point at distance R, normal speed w.
 
-    MODEL.md ambiguity: impulse = integral of N over the impact, contact_time = from
+    Reading of docs/model.md: impulse = integral of N over the impact, contact_time = from
     first touch to the first return of N to 0, e_eff = -(relative normal speed of the
     point w.r.t. the fence point at separation) / w; the fence starts at rest at its
     equilibrium (flexible: B2, K2 with the drive at rest; free: B2 = K2 = 0).
@@ -474,7 +476,7 @@ class _Mode:
                            for k, v in self.__dict__.items()})
         return m
 
-    # MODEL.md ambiguity: "contact" for stages (§10), A/B, contact_time, n_impacts and
+    # Reading of docs/model.md: "contact" for stages (§10), A/B, contact_time, n_impacts and
     # the free fence's release (§3) is a FORCE-CARRYING contact (N > 0).  A contact
     # that is geometrically penetrating but clipped (D > 0, N = 0 after a separation)
     # counts as no contact; re-engagement from there is a new onset.
@@ -607,7 +609,7 @@ class CycleModel:
     def choose_tip_edge(self, mode, x, yc, c, s, al):
         """Separating-axis choice of the pushed edge (§5.2)."""
         _, _, _, _, px, py, _, ovx, ovy = self.tip_geometry(x, yc, c, s, al)
-        # MODEL.md ambiguity: a tie of the two overlaps (measure zero) goes to the
+        # Reading of docs/model.md: a tie of the two overlaps (measure zero) goes to the
         # y' axis (long edges); a tip exactly on the load's mid-line goes to the + edge.
         if ovx < ovy:
             mode.tip_axis = 0
@@ -639,7 +641,7 @@ class CycleModel:
         Nr = 0.0
         Dmax = -math.inf
         # §5.1 corner-fence
-        # MODEL.md ambiguity: the region 0 <= s <= l is closed (a corner exactly at the
+        # Reading of docs/model.md: the region 0 <= s <= l is closed (a corner exactly at the
         # pivot or the tip is on the fence), h = 0 is no contact (sigma h < 0 strict).
         for j in range(4):
             if mode.cf_region[j] != ON or mode.cf_state[j] == OFF:
@@ -667,7 +669,7 @@ class CycleModel:
             Mz += rx * fy - ry * fx
             tau -= sg * N * sj                               # moment on fence -sigma N s
         # §5.3 corner-rail
-        # MODEL.md ambiguity: x_G <= 0 is closed, y_G < 0 strict; leaving x_G = 0 with
+        # Reading of docs/model.md: x_G <= 0 is closed, y_G < 0 strict; leaving x_G = 0 with
         # D > 0 drops the rail force at once (the hand-over to the fence happens at
         # s = 0, which for alpha > 0 lies at x_G = -y_G tan(alpha) > 0: a short gap).
         for j in range(4):
@@ -688,7 +690,7 @@ class CycleModel:
             Fy += N
             Mz += rx * N - ry * fx
         # §5.2 tip-edge
-        # MODEL.md ambiguity: the friction slip at the tip is the velocity of the
+        # Reading of docs/model.md: the friction slip at the tip is the velocity of the
         # load's material point at T relative to the tip T, along the pushed edge;
         # the reaction of normal force and friction acts on the fence at T.
         if mode.tip_inside:
@@ -841,14 +843,14 @@ class CycleModel:
                 else:
                     out.append(px if mode.tip_axis == 0 else py)
             elif kind == "scraped":
-                # MODEL.md ambiguity: checked all the time, also when the load no
+                # Reading of docs/model.md: checked all the time, also when the load no
                 # longer touches the fence (it can slide off past the tip and still
                 # reach P_max by its own momentum).
                 out.append(yc - self.p["P_max"])       # §9 centroid reaches P_max
             elif kind == "escaped":
                 out.append(min(cr[0] for cr in corners) - self.l)   # §9 all corners x > l
             elif kind == "fail":
-                # MODEL.md ambiguity: the penetration limit applies to every engaged
+                # Reading of docs/model.md: the penetration limit applies to every engaged
                 # contact (fence, tip, rail), clipped ones included.
                 if Dmax is None:
                     Dmax = self.evaluate(t, y, mode, want_rhs=False)[1][2]
@@ -868,7 +870,7 @@ class CycleModel:
     # ---- mode transitions ------------------------------------------------------
     def _classify(self, D, N):
         """Contact state when a contact enters its region with penetration D."""
-        # MODEL.md ambiguity: a corner that enters the fence region (from behind the
+        # Reading of docs/model.md: a corner that enters the fence region (from behind the
         # pivot, e.g. handed over from the rail) or the rail region already
         # penetrating starts with that D, the force jumping; it is clipped (N = 0) if
         # the unclipped law is <= 0 there.
@@ -947,7 +949,7 @@ class CycleModel:
             elif mode.tip_inside and not inside:
                 mode.tip_inside = False
                 mode.tip_state = OFF
-        # MODEL.md ambiguity: the separating-axis edge choice is re-evaluated all the
+        # Reading of docs/model.md: the separating-axis edge choice is re-evaluated all the
         # time while the tip is inside, so the pushed edge can switch mid-contact
         # (D and N then jump); it is not frozen at the tip's entry.
         elif kind in ("tp_sat", "tp_side"):
@@ -1151,7 +1153,7 @@ def simulate_cycle(p, method="DOP853", rtol=1e-10, atol=None, max_step=None,
             ts_ = sol.t.copy()
         t1 = float(ts_[-1])
         segments.append((t, t1, seg_mode, sol.sol, ts_))
-        # MODEL.md ambiguity: stage times cover [0, t_exit]; S2 ("none") includes
+        # Reading of docs/model.md: stage times cover [0, t_exit]; S2 ("none") includes
         # the approach before the first contact and any time after the last one.
         stage_time[seg_mode.stage()] += t1 - t
         y_new = sol.y[:, -1].copy() if found is None else ye
@@ -1214,7 +1216,7 @@ def simulate_cycle(p, method="DOP853", rtol=1e-10, atol=None, max_step=None,
             if math.isnan(t_first):
                 t_first = t
             # §3 free fence: released at the first load-fence contact
-            # MODEL.md ambiguity: from alpha = alpha_w, alphadot = alphadot_w of that
+            # Reading of docs/model.md: from alpha = alpha_w, alphadot = alphadot_w of that
             # instant; B2 = K2 = 0 for the rest of the cycle, also after the load has
             # left (so its damper_energy is 0 and it coasts to t_c).
             if drive_kind == "free" and not mode.fence_dyn:
@@ -1234,7 +1236,7 @@ def simulate_cycle(p, method="DOP853", rtol=1e-10, atol=None, max_step=None,
     if outcome == "timeout":
         t_exit = t_max
     still_touching = mode.n_fence_active() > 0
-    # MODEL.md ambiguity: without any load-fence contact t_first_contact is NaN and
+    # Reading of docs/model.md: without any load-fence contact t_first_contact is NaN and
     # contact_time 0.
     if math.isnan(t_first):
         t_A, contact_time = math.nan, 0.0
@@ -1283,7 +1285,7 @@ def simulate_cycle(p, method="DOP853", rtol=1e-10, atol=None, max_step=None,
     residual = 0.0
     if outcome != "failed" and t_exit < t_c:
         # after the load has left only the fence's linear ODE remains, up to t_c
-        # MODEL.md ambiguity: also after a timeout with t_max < t_c, the load is then
+        # Reading of docs/model.md: also after a timeout with t_max < t_c, the load is then
         # dropped; after a failure nothing is integrated (residual = NaN).
         if mode.fence_dyn:
             B2, K2, I2 = mode.B2, mode.K2, model.I2
@@ -1322,7 +1324,7 @@ def simulate_cycle(p, method="DOP853", rtol=1e-10, atol=None, max_step=None,
             residual = abs(yc_[nm.index("al")] - 0.0)     # alpha_w(t_c) = 0
         Ed = float(yc_[nm.index("Ed")])
 
-    # MODEL.md ambiguity: x_exit, phi_exit are the centroid's x and phi at t_exit
+    # Reading of docs/model.md: x_exit, phi_exit are the centroid's x and phi at t_exit
     # (at t_max for a timeout); contact_energy sums fence, tip and rail contacts.
     ff = simulate_freefall(p)
     ffF = ff["peak_force"]
@@ -1580,12 +1582,12 @@ def _fix_modes(model, t, y, mode, touched):
 
 
 def simulate_reference(params, method="DOP853", rtol=1e-10, atol=None, scene="cycle"):
-    """Reference solution of one scene of MODEL.md.
+    """Reference solution of one scene of docs/model.md (§8).
 
     Parameters
     ----------
     params : dict
-        MODEL.md §12 names; missing ones take the defaults; ``case`` applies a named
+        docs/model.md §12 names; missing ones take the defaults; ``case`` applies a named
         case ("small_far", "long_near") first.
     method : str
         Any solve_ivp method ("DOP853", "RK45", "LSODA", "Radau", ...).
@@ -1599,7 +1601,7 @@ def simulate_reference(params, method="DOP853", rtol=1e-10, atol=None, scene="cy
 
     Returns
     -------
-    dict of the MODEL.md §11 results (cycle) or peak_force [N], impulse [N s],
+    dict of the docs/model.md §11 results (cycle) or peak_force [N], impulse [N s],
     contact_time [s], e_eff [-] (impact, freefall), plus n_rhs and wall_time [s].
     """
     t0 = time.perf_counter()
