@@ -1,4 +1,4 @@
-"""Adaptive maps against the full grid (issue "Adaptive maps"), side by side in one run.
+"""Adaptive maps against the full grid, side by side in one run.
 
     python benchmarks/adaptive.py [--jobs 2] [--only NAME ...]   -> prints, writes results/adaptive.md
                                                                    and results/figures/adaptive_*.png
@@ -43,10 +43,12 @@ STUDIES = {
     "three_bind": "benchmarks/specs/adaptive_three_bind.yaml",
     "b2k2_cases": "sweeps/b2k2.yaml",
 }
+#: what an adaptive map must do to replace the full grid: run at most this share of its cycles,
+#: and classify at most this share of the design points differently
 BAR_SHARE, BAR_WRONG = 0.10, 0.005
 # Learner2D keeps refining around the boundary between grid points (its points are continuous):
 # past this many points (minutes of its own bookkeeping) it stops short of the budget
-MAX_LEARNER_POINTS = 2500  # the issue's bars: <= 1/10 of the cycles, <= 0.5 % classified differently
+MAX_LEARNER_POINTS = 2500
 
 
 def run_study(name: str, path: str, jobs: int, tmp: Path) -> dict:
@@ -211,7 +213,7 @@ def report(results: list, learners: dict, jobs: int) -> str:
              f"`python benchmarks/adaptive.py --jobs {jobs}`: each study's full grid and adaptive map, one after "
              "the other in one run on this machine (2 cores), both without the verification. `cycles`: every "
              "cycle run, the coarse pass included. `differ`: design points whose verdict differs from the full "
-             "grid's (the issue's bar: <= 0.5 % from <= 1/10 of the cycles). `binding differs`: feasible points "
+             "grid's (the bars: <= 0.5 % from <= 1/10 of the cycles). `binding differs`: feasible points "
              "whose binding constraint differs. `T = full rows`: the adaptive table's rows equal the full grid's "
              "rows of the same scenes.", "",
              "| study | grid x loads | full cycles | adaptive cycles | share | full s | adaptive s | speed-up | "

@@ -1,4 +1,4 @@
-"""Convergence and cost of one cycle for the paper's named cases (issue: the engine).
+"""Convergence and cost of one cycle for the paper's named cases.
 
 For small_far and long_near with the flexible, rigid and free drives: peak_force,
 deflection_max and t_exit at the default step and 10x and 100x finer (step_factor 1, 0.1,

@@ -1,15 +1,16 @@
-"""The last two edges (issue "Trust", item 2): the error of every validation scene at the default
-setting and the warm cost of a cycle, an earlier revision and this tree side by side in one run.
+"""The error of every validation scene at the default setting and the warm cost of a cycle, an
+earlier revision and this tree side by side in one run.
 
     python benchmarks/edges.py [--before 536da18] [--rounds 5]   -> prints, writes results/edges.md
 
-For each tree (the earlier one exported with `git archive`, this one the working tree), in a
-process of its own with a warm Numba cache of its own:
-  * errors: every scene of benchmarks/validation_scenes.yaml run at the default setting with the
-    reference row's fully resolved parameters, compared with benchmarks/reference_results.csv
-    (SciPy DOP853 at rtol 1e-10, benchmarks/reference.py: independent of the engine) by the
-    validation's floored relative errors (tests/test_validation.py's metric): peak_force,
-    deflection_max, t_exit, plus the outcome and the touches;
+For each tree (the earlier one exported from git by benchmarks/revisions.py, this one the working
+tree), in a process of its own with a warm Numba cache of its own:
+  * errors: every scene of tests/reference/scenes.yaml run at the default setting with the
+    reference row's fully resolved parameters, compared with tests/reference/results.csv
+    (SciPy DOP853 at rtol 1e-10, tests/reference/model.py: independent of the engine) as
+    tests/test_validation.py compares (tests/reference/compare.py, in this process: the
+    floored relative errors of peak_force, deflection_max and t_exit, a non-finite one
+    counted as 1), plus the outcome and the contacts;
   * steps: the mean integrator steps of a cycle on 60 scenes of the main job (sweeps/b2k2.yaml:
     B2 x K2 x case, a seeded sample) - deterministic;
   * warm time: CPU ms per cycle on the same 60 scenes, 5 passes a round, of the kernel alone
@@ -21,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import statistics
 import subprocess
@@ -28,36 +30,32 @@ import sys
 import tempfile
 from pathlib import Path
 
+from revisions import export  # benchmarks/revisions.py: a revision's tree, exported from git
+
 ROOT = Path(__file__).resolve().parents[1]
+# this tree's package; tests/: the independent reference (tests/reference/)
+sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
+
+import reference  # noqa: E402
+from reference import compare  # noqa: E402  (the validation's judge)
+
 BEFORE = "536da18"
 
 WORKER = r"""
-import json, math, sys, time
+import json, sys, time
 import numpy as np
-import pandas as pd
-sys.path.insert(0, BENCH)
-import make_reference
+sys.path.insert(0, TESTS)  # tests/reference/: the independent reference
+import reference
 import fencesweep
 
-def errors(res, ref):
-    scale = {"peak_force": max(abs(ref["peak_force"]), 0.1 * ref["freefall_force"]),
-             "deflection_max": max(abs(ref["deflection_max"]), 0.01),
-             "t_exit": max(abs(ref["t_exit"]), 1e-3)}
-    e = {k: abs(res[k] - ref[k]) / s for k, s in scale.items()}
-    e = {k: (v if math.isfinite(v) else 1.0) for k, v in e.items()}
-    e["outcome"] = res["outcome"] == ref["outcome"]
-    fence = bool(ref["touch_fence"] or ref["touch_tip"])
-    e["touch"] = (math.isfinite(res["t_first_contact"]) == fence
-                  and (res["peak_rail_force"] > 1e-9 * res["freefall_force"]) == bool(ref["touch_rail"]))
-    return e
-
 what = sys.argv[1]
-if what == "errors":
-    rows = pd.read_csv(make_reference.OUT).to_dict("records")
+if what == "errors":  # the results that the judge reads, judged by the parent process
+    keys = ("outcome", "peak_force", "deflection_max", "t_exit", "t_first_contact", "peak_rail_force",
+            "freefall_force")
     out = {}
-    for ref in rows:
-        res = fencesweep.simulate("cycle", **make_reference.row_params(ref))
-        out[ref["id"]] = errors(res, ref)
+    for ref in reference.rows():
+        res = fencesweep.simulate("cycle", **reference.row_params(ref))
+        out[ref["id"]] = {k: res[k] for k in keys}
     print(json.dumps(out))
     sys.exit()
 
@@ -108,22 +106,29 @@ print(json.dumps((time.process_time() - t) / (5 * len(fs)) * 1e3))
 """
 
 
-def export(rev: str, where: Path) -> Path:
-    where.mkdir(parents=True)
-    arch = subprocess.run(["git", "archive", rev], cwd=ROOT, capture_output=True, check=True)
-    subprocess.run(["tar", "-x", "-C", str(where)], input=arch.stdout, check=True)
-    return where
-
-
 def run(tree: Path, cache: Path, what: str):
     env = {k: v for k, v in os.environ.items() if not k.startswith(("NUMBA_", "PYTHONPATH"))}
     env.update(NUMBA_CACHE_DIR=str(cache), PYTHONPATH=str(tree))
-    code = f"BENCH = {str(ROOT / 'benchmarks')!r}\n" + WORKER
+    code = f"TESTS = {str(ROOT / 'tests')!r}\n" + WORKER
     r = subprocess.run([sys.executable, "-c", code, what], env=env, capture_output=True,
                        text=True, cwd=tree)
     if r.returncode:
         raise SystemExit(f"{tree} {what} failed:\n{r.stderr[-3000:]}")
     return json.loads(r.stdout.strip().splitlines()[-1])
+
+
+def judged(results: dict[str, dict]) -> dict[str, dict]:
+    """Per scene, the errors of its results against the reference (non-finite: 1), and whether
+    the outcome and the contacts agree (tests/reference/compare.py)."""
+    refs = {r["id"]: r for r in reference.rows()}
+    out = {}
+    for i, res in results.items():
+        ref = refs[i]
+        e = {k: (v if math.isfinite(v) else 1.0) for k, v in compare.errors(res, ref).items()}
+        e["outcome"] = res["outcome"] == ref["outcome"]
+        e["touch"] = not compare.contact_mismatches(res, ref)
+        out[i] = e
+    return out
 
 
 GROUPS = (("free_harmonic", "free fences, harmonic profile, t_c 1.0-1.2 s"),
@@ -165,11 +170,11 @@ def main() -> None:
     ap.add_argument("--out", default=str(ROOT / "results" / "edges.md"))
     a = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
-        trees = {a.before: export(a.before, Path(tmp) / "before"), "this tree": ROOT}
+        trees = {a.before: export(a.before), "this tree": ROOT}
         caches = {n: Path(tmp) / f"cache-{i}" for i, n in enumerate(trees)}
         errs, steps, times, calls = {}, {}, {n: [] for n in trees}, {n: [] for n in trees}
         for n, t in trees.items():
-            errs[n] = run(t, caches[n], "errors")
+            errs[n] = judged(run(t, caches[n], "errors"))
             steps[n] = run(t, caches[n], "steps")
             print(f"{n}: errors of {len(errs[n])} scenes, {steps[n]:.1f} steps a cycle", flush=True)
         for r in range(a.rounds):
@@ -183,10 +188,10 @@ def main() -> None:
     medc = {n: statistics.median(calls[n]) for n in names}
     worst = {n: max(errs[n], key=lambda i: max(errs[n][i][k] for k in ("peak_force", "deflection_max", "t_exit")))
              for n in names}
-    lines = ["# The last two edges: errors at the default setting and the warm cost, before and after",
+    lines = ["# Errors at the default setting and the warm cost, an earlier revision and this tree",
              "", f"Regenerate: `python benchmarks/edges.py --before {a.before} --rounds {a.rounds}` "
              "(what is measured: its docstring). Errors are floored relative errors against the "
-             "independent reference (benchmarks/reference_results.csv).", ""]
+             "independent reference (tests/reference/results.csv).", ""]
     lines += table(errs, names)
     lines += ["", "Worst scene: " + "; ".join(
         f"{n}: {worst[n]} ({max(errs[n][worst[n]][k] for k in ('peak_force', 'deflection_max', 't_exit')):.1e})"

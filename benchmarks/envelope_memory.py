@@ -1,4 +1,4 @@
-"""Peak memory and time of an envelope study against its size (issue 10, item 6).
+"""Peak memory and time of an envelope study against its size.
 
 Runs `fencesweep grid` on sweeps/envelope.yaml with its B2 x K2 grid cut to n x n elements
 (n = 11, 21, 41, 81; always the same 64 loads), each in a fresh process, and samples the
@@ -109,7 +109,7 @@ def render(n_loads: int, jobs: int) -> None:
         r["peak_rss"], r["peak_uss"] = r["peak_rss_mib"] * 2**20, r["peak_uss_mib"] * 2**20
     mib = 2 ** 20
     lines = ["# Envelope study: peak memory and time against size", "",
-             "`python benchmarks/envelope_memory.py` (issue 10, item 6): `fencesweep grid sweeps/envelope.yaml` with "
+             "`python benchmarks/envelope_memory.py`: `fencesweep grid sweeps/envelope.yaml` with "
              f"its B2 x K2 grid cut to n x n elements, {n_loads} loads each, `--jobs {jobs}`, each run a fresh "
              "process (numba's cache warm); memory of the process tree sampled every 0.2 s with psutil. "
              "RSS sums each process's resident pages (the pages a forked worker shares with its parent counted in "

@@ -2,15 +2,15 @@
 accepted steps' local error estimates, commit BEFORE) and now (their root-sum-square, this
 tree), side by side in one run.
 
-Every scene of benchmarks/reference_results.csv is run by both engines with its fully
-resolved MODEL.md §12 parameters (make_reference.row_params) at step_factor 1 (and, for
-this tree, at the other FACTORS: does the estimate follow the tolerance?). The true error of
-a scene is the largest of its relative errors in peak_force, deflection_max and t_exit
-against the independent reference, with the floors of tests/test_validation.py (its
-`errors`); the estimate is judged by the ratio estimate / true error. A scene whose true
-error is below ROUNDING is at the level of rounding, where neither number means anything,
-and is listed apart. The older engine is exported from git and run in a subprocess (its
-package has the same name).
+Every scene of tests/reference/results.csv is run by both engines with its fully resolved
+docs/model.md §12 parameters (reference.row_params) at step_factor 1 (and, for this tree, at
+the other FACTORS: does the estimate follow the tolerance?). The true error of a scene is the
+largest of its relative errors in peak_force, deflection_max and t_exit against the independent
+reference, with the floors with which tests/test_validation.py judges the engine
+(tests/reference/compare.py, `errors`); the estimate is judged by the ratio estimate / true
+error. A scene whose true error is below ROUNDING is at the level of rounding, where neither
+number means anything, and is listed apart. The older engine is exported from git
+(benchmarks/revisions.py) and run in a subprocess (its package has the same name).
 
     python benchmarks/error_estimate.py    -> results/error_estimate.md,
                                               results/figures/error_estimate.png
@@ -21,35 +21,35 @@ import json
 import math
 import subprocess
 import sys
-import tempfile
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(ROOT), str(ROOT / "benchmarks"), str(ROOT / "tests")]  # this tree's package first
+# this tree's package first; tests/: the independent reference (tests/reference/)
+sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
 
-import test_validation as tv  # noqa: E402  (the validation test's error definition and floors)
-from main_job_v1_v2 import export  # noqa: E402  (a revision's package, exported from git)
+import reference  # noqa: E402
+from reference import compare  # noqa: E402  (the validation's error definition and floors)
+from revisions import export  # noqa: E402  (benchmarks/revisions.py: a revision's tree, exported from git)
 
 #: the engine with the plain-sum estimate (the commit before the root-sum-square)
 BEFORE = "657f627"
-#: step_factors run with this tree (1 is the default, the one the issue's bar is about)
+#: step_factors run with this tree (1 is the default, the setting whose estimate is judged)
 FACTORS = (4.0, 1.0, 0.25)
-#: a true error below this is rounding, and the issue's bar: the estimate within this factor
-#: of the true error (both as tests/test_validation.py judges the estimate)
-ROUNDING, WITHIN = tv.ROUNDING, tv.ESTIMATE_WITHIN
+#: a true error below this is rounding, and the band an estimate should lie in: within this
+#: factor of the true error (both as tests/test_validation.py judges the estimate)
+ROUNDING, WITHIN = compare.ROUNDING, compare.ESTIMATE_WITHIN
 QUANTITIES = ("peak_force", "deflection_max", "t_exit")
 
 CODE = r"""
 import json, sys
-import make_reference, fencesweep
-import pandas as pd
+import reference, fencesweep
 out = []
 for sf in json.loads(sys.argv[1]):
-    for ref in pd.read_csv(make_reference.OUT).to_dict("records"):
-        r = fencesweep.simulate("cycle", **{**make_reference.row_params(ref), "step_factor": sf})
+    for ref in reference.rows():
+        r = fencesweep.simulate("cycle", **{**reference.row_params(ref), "step_factor": sf})
         out.append({"id": ref["id"], "step_factor": sf, "error_estimate": r["error_estimate"],
                     "n_steps": r["n_steps"], **{k: r[k] for k in %r}})
 print(json.dumps(out))
@@ -60,14 +60,14 @@ def run(where: Path, factors) -> pd.DataFrame:
     """The engine at `where` on every reference scene at `factors`, in a subprocess."""
     res = subprocess.run([sys.executable, "-c", CODE, json.dumps(list(factors))], cwd=where, capture_output=True,
                          text=True, check=True,
-                         env={"PYTHONPATH": f"{where}:{ROOT / 'benchmarks'}", "PATH": "/usr/bin:/bin"})
+                         env={"PYTHONPATH": f"{where}:{ROOT / 'tests'}", "PATH": "/usr/bin:/bin"})
     return pd.DataFrame(json.loads(res.stdout.strip().splitlines()[-1]))
 
 
 def judge(df: pd.DataFrame) -> pd.DataFrame:
-    """True error (tv.errors, largest of the three) and the ratio estimate / true error."""
-    refs = {r["id"]: r for r in tv.ROWS}
-    true = [max(tv.errors(r, refs[r["id"]]).values()) for r in df.to_dict("records")]
+    """True error (compare.errors, largest of the three) and the ratio estimate / true error."""
+    refs = {r["id"]: r for r in reference.rows()}
+    true = [max(compare.errors(r, refs[r["id"]]).values()) for r in df.to_dict("records")]
     df = df.assign(true_error=true)
     df["ratio"] = df.error_estimate / df.true_error
     df["judged"] = df.true_error >= ROUNDING
@@ -110,18 +110,18 @@ def plot(before: pd.DataFrame, now: pd.DataFrame, path: Path) -> None:
 
 
 def main() -> None:
-    with tempfile.TemporaryDirectory() as tmp:
-        before = judge(run(export(BEFORE, Path(tmp) / BEFORE), (1.0,)))
+    before = judge(run(export(BEFORE), (1.0,)))
     now = judge(run(ROOT, FACTORS))
     now1 = now[now.step_factor == 1.0]
     n = len(now1)
     lines = ["# The recorded error_estimate against the true error", "",
              "Regenerate: `python benchmarks/error_estimate.py` (both engines in one run). Figure: "
              "`results/figures/error_estimate.png`.", "",
-             f"Each of the {n} validation scenes (`benchmarks/reference_results.csv`) is run with its fully resolved "
+             f"Each of the {n} validation scenes (`tests/reference/results.csv`) is run with its fully resolved "
              "§12 parameters. True error: the largest relative error of peak_force, deflection_max and t_exit "
-             "against the independent reference, with the floors of `tests/test_validation.py`. Ratio: "
-             f"error_estimate / true error; the issue's bar is a ratio within 1/{WITHIN:g} … {WITHIN:g}. Scenes "
+             "against the independent reference, with the floors of `tests/test_validation.py` "
+             "(`tests/reference/compare.py`). Ratio: "
+             f"error_estimate / true error; an estimate should lie within 1/{WITHIN:g} … {WITHIN:g} of it. Scenes "
              f"with a true error below {ROUNDING:g} are at rounding level and not judged "
              f"({int((~now1.judged).sum())} at step_factor 1: "
              + ", ".join(now1[~now1.judged].id) + ").", "",

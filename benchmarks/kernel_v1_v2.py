@@ -3,11 +3,11 @@ present one, side by side in one run on the same machine.
 
     python benchmarks/kernel_v1_v2.py      -> prints a table, writes results/kernel_v1_v2.md
 
-v1 is exported from git into a temporary folder and run in a subprocess (its package has
+v1 is exported from git (benchmarks/revisions.py) and run in a subprocess (its package has
 the same name); both time the compiled kernel warm (CPU time, median of 5 repeats of 50 runs)
 on the named cases (flexible and rigid drive), and on a fixed sample of the main job's scenes
 (SAMPLE scenes of sweeps/b2k2.yaml drawn with a fixed seed; median of 5 repeats of 10 runs
-each): the issue's "kernel time per cycle over a fixed sample of b2k2 scenes". The machine's
+each): the kernel time per cycle over a fixed sample of the main job's scenes. The machine's
 noise (+-10% between runs) is larger than many effects, so v1 and v2 alternate for ROUNDS
 rounds, each a fresh process; the table gives each run's median over the rounds and the
 ratio of every round beside it.
@@ -23,13 +23,12 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
-import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # this tree's package, for numerics (step_factor, looser_table)
 
-from main_job_v1_v2 import export  # noqa: E402  (a revision's package, exported from git)
+from revisions import export  # noqa: E402  (benchmarks/revisions.py: a revision's tree, exported from git)
 
 V1 = "fbbc326"
 CODE = r"""
@@ -158,11 +157,10 @@ def main() -> None:
     rounds = ap.parse_args().rounds
     olds, news = [], []
     sfs = tuple(round(step_factor(tol), 6) for tol in LOOSER_TOLS)
-    with tempfile.TemporaryDirectory() as tmp:
-        v1 = export(V1, Path(tmp) / V1)
-        for _ in range(rounds):
-            olds.append(run(v1))
-            news.append(run(ROOT, sfs))
+    v1 = export(V1)
+    for _ in range(rounds):
+        olds.append(run(v1))
+        news.append(run(ROOT, sfs))
     ratios = [sum(r["ms"] for r in o["sample"]) / sum(r["ms"] for r in n["sample"]) for o, n in zip(olds, news)]
     old, new = _median_run(olds), _median_run(news)
     lines = ["# Kernel time per cycle: v1 (RK4, " + V1 + ") against v2 (this tree)", "",

@@ -1,14 +1,15 @@
-"""The peer: the cycle model of MODEL.md as one ``numba.cfunc`` integrated by compiled LSODA.
+"""The peer: the cycle model of docs/model.md as one ``numba.cfunc`` integrated by compiled LSODA.
 
-A benchmark peer of the engine (issue "Kernel v2", step 7): the same scene ``cycle``
-(MODEL.md §1-§6, §9, §11) written the way a Numba user would write it for `numbalsoda`
--- one compiled right-hand side with the signature ``f(t, u, du, data)``, handed to
-``numbalsoda.lsoda`` with a dense ``t_eval`` grid -- and the results scraped from the
-samples.  It is ported from MODEL.md and ``benchmarks/reference.py`` and imports nothing
-from the package ``fencesweep`` (only :func:`main`, which times the engine beside it,
-does).  The contact damping q (and the linear law's b_lin) are taken from
-``reference.q_from_e`` / ``reference.zeta_from_e``: the peer benchmarks the reference model,
-not the engine.
+A benchmark peer of the engine: the same scene ``cycle`` (docs/model.md §1-§6, §9, §11)
+written the way a Numba user would write it for `numbalsoda` -- one compiled right-hand side
+with the signature ``f(t, u, du, data)``, handed to ``numbalsoda.lsoda`` with a dense
+``t_eval`` grid -- and the results scraped from the samples: what the engine's own
+integrator buys against the compiled solver a Numba user would reach for first (the LSODA
+rows of benchmarks/work_precision.py, and results/lsoda_peer.md).  It is ported from
+docs/model.md and the reference (``tests/reference/model.py``) and imports nothing from the
+package ``fencesweep`` (only :func:`main`, which times the engine beside it, does).  The
+contact damping q (and the linear law's b_lin) are taken from the reference's
+``q_from_e`` / ``zeta_from_e``: the peer benchmarks the reference model, not the engine.
 
 Model (one right-hand side, no events)
 --------------------------------------
@@ -26,7 +27,7 @@ at rest for t > t_c; the fence flexible (§3), rigid (alpha = alpha_w) or free (
 the drive until the first fence force, then B2 = K2 = 0).  Once the outcome holds (centroid
 at y >= P_max, or every corner at x > l; or t >= t_max) the load exerts no force any more:
 it slides on under belt friction alone (which keeps it gone) and the fence runs alone to
-t_c, as MODEL.md §8 asks.
+t_c, as docs/model.md §8 asks.
 
 Integration: ``lsoda`` from 0 to t_c on a uniform grid of spacing ``dt_eval``; if no outcome
 by t_c, on from t_c to t_max in chunks of ``CHUNK`` s until the outcome shows on the grid.
@@ -81,7 +82,7 @@ Usage
 -----
     python benchmarks/lsoda_peer.py              # timing table of the named cases, peer vs
                                                  # engine, and the peer's errors against
-                                                 # benchmarks/reference_results.csv
+                                                 # tests/reference/results.csv
                                                  # -> results/lsoda_peer.md
     python benchmarks/lsoda_peer.py --no-errors  # the timing table only
 
@@ -106,9 +107,11 @@ from numba import njit
 from numbalsoda import lsoda, lsoda_sig
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(ROOT), str(ROOT / "benchmarks")]  # this tree's package (main only), the reference
+# this tree's package (main only); tests/: the independent reference (tests/reference/)
+sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
 
-from reference import q_from_e, zeta_from_e  # noqa: E402  (the reference's calibration)
+from reference import RESULTS  # noqa: E402  (the reference's results of the validation scenes)
+from reference.model import q_from_e, zeta_from_e  # noqa: E402  (the reference's calibration)
 
 G_ACC = 9.81            # [m/s^2] §6
 ASCALE = 10.0           # state[6] = ASCALE * alpha (atol of alpha = atol / ASCALE)
@@ -124,7 +127,7 @@ REFINE_POINTS = 101     # refine: output points of each re-integration
 REFINE_LEVELS = 2       # refine: re-integrations per maximum (each zooms 50x)
 
 # ---------------------------------------------------------------------------
-# Parameters (MODEL.md §12)
+# Parameters (docs/model.md §12)
 # ---------------------------------------------------------------------------
 
 DEFAULTS = {
@@ -572,7 +575,7 @@ def drive_on_grid(profile: str, swing: float, coupler_ratio: float, t_c: float, 
 
 
 def make_data(p: dict) -> np.ndarray:
-    """The cfunc's data array for resolved MODEL.md §12 parameters p."""
+    """The cfunc's data array for resolved docs/model.md §12 parameters p."""
     d = np.zeros(N_DATA)
     d[I_TLAST] = math.nan
     d[I_DRIVE] = {"flexible": FLEXIBLE, "rigid": RIGID, "free": FREE}[p["drive"]]
@@ -654,7 +657,7 @@ def peer_cycle(params: dict, rtol: float = 1e-6, dt_eval: float = DT_EVAL,
                refine: bool = False, samples: bool = False) -> dict:
     """One work cycle of the reference model with compiled LSODA.
 
-    params: fully resolved MODEL.md §12 parameters (see :func:`resolve`).  rtol: LSODA's
+    params: fully resolved docs/model.md §12 parameters (see :func:`resolve`).  rtol: LSODA's
     relative tolerance (atol = 1e-3 rtol, on alpha 1e-4 rtol).  dt_eval: spacing of the
     output grid [s].  refine: locate the peak force between the samples by re-integrating
     around each sampled local maximum (see :func:`_refine_peak`).  samples: also return
@@ -752,11 +755,11 @@ def peer_cycle(params: dict, rtol: float = 1e-6, dt_eval: float = DT_EVAL,
 
 
 # ---------------------------------------------------------------------------
-# Errors against the reference (benchmarks/reference_results.csv)
+# Errors against the reference (tests/reference/results.csv)
 # ---------------------------------------------------------------------------
 
 def scene_params(row) -> dict:
-    """Resolved parameters of one row of reference_results.csv (its own columns)."""
+    """Resolved parameters of one row of tests/reference/results.csv (its own columns)."""
     p = {}
     for k, dv in DEFAULTS.items():
         val = row[k]
@@ -784,7 +787,7 @@ def errors(res: dict, ref) -> dict:
 
 def peer_errors(rtol: float = 1e-6, dt_eval: float = DT_EVAL, refine: bool = False,
                 repeat: int = 3, csv: Path | None = None, judge=None):
-    """The peer on every scene of benchmarks/reference_results.csv: one row per scene with
+    """The peer on every scene of tests/reference/results.csv: one row per scene with
     solver, setting, id, time (CPU s per cycle, warm, median of ``repeat``), steps (nfev),
     n_steps, outcome, status and the errors of ``judge(result, reference row)`` (default
     :func:`errors`; benchmarks/work_precision.py passes its own) -- the columns of
@@ -792,7 +795,7 @@ def peer_errors(rtol: float = 1e-6, dt_eval: float = DT_EVAL, refine: bool = Fal
     seconds is timed by that run alone.  Returns a pandas DataFrame."""
     import pandas as pd
 
-    ref = pd.read_csv(csv or ROOT / "benchmarks" / "reference_results.csv")
+    ref = pd.read_csv(csv or RESULTS)
     peer_cycle(resolve("small_far"), rtol, dt_eval, refine)          # JIT / cache load
     setting = f"rtol={rtol:g}, dt_eval={dt_eval:g}" + (", refined" if refine else "")
     rows = []
@@ -843,7 +846,7 @@ def _machine() -> str:
 
 def time_named_cases(rtol: float, rounds: int) -> tuple[list, dict]:
     """CPU time per cycle of the engine and the peer on small_far and long_near (flexible
-    drive, MODEL.md defaults), warm, interleaved round by round; medians."""
+    drive, docs/model.md §12 defaults), warm, interleaved round by round; medians."""
     import fencesweep   # the engine, for the timing only
 
     jobs = {}
@@ -906,13 +909,13 @@ def main() -> None:
         "# The peer in the table: compiled LSODA (numbalsoda) beside the engine", "",
         "Regenerate: `python benchmarks/lsoda_peer.py` (needs the `bench` extra: "
         "`pip install -e \".[bench]\"`, which builds numbalsoda from source with a Fortran "
-        "compiler). The peer is `benchmarks/lsoda_peer.py`: the cycle model of MODEL.md as one "
+        "compiler). The peer is `benchmarks/lsoda_peer.py`: the cycle model of docs/model.md as one "
         "`numba.cfunc` right-hand side integrated by `numbalsoda.lsoda` on a uniform output "
         "grid, results scraped from the samples (its docstring lists what it cannot do that the "
         "event-driven reference does).", "",
         f"Machine: {_machine()}.", "",
         "## Time per cycle, the named cases", "",
-        f"Flexible drive, MODEL.md defaults otherwise; CPU time per cycle, warm (JIT and caches "
+        f"Flexible drive, docs/model.md §12 defaults otherwise; CPU time per cycle, warm (JIT and caches "
         f"excluded), median of {args.rounds} calls interleaved round by round with the engine in "
         "the same process. *samples*: the peak force is the largest sampled value; *refined*: every sampled local maximum above half the peak is "
         "re-integrated on a 50x finer grid, twice. *the lsoda call alone*: the integration "
@@ -940,11 +943,11 @@ def main() -> None:
             if deg is None:
                 deg = df[df.id.isin(DEGENERATE)]
             print(summ[-1], flush=True)
-        n_ref = len(pd.read_csv(ROOT / "benchmarks" / "reference_results.csv"))
+        n_ref = len(pd.read_csv(RESULTS))
         text += [
             "## The peer's errors against the reference", "",
-            f"Every scene of `benchmarks/reference_results.csv` ({n_ref}; the reference: "
-            "benchmarks/reference.py, DOP853 at rtol 1e-10 with event restarts), errors as in "
+            f"Every scene of `tests/reference/results.csv` ({n_ref}; the reference: "
+            "tests/reference/model.py, DOP853 at rtol 1e-10 with event restarts), errors as in "
             "`benchmarks/work_precision.py` (relative; peak_force against max(|ref|, 1e-3 of the "
             "free-fall force), deflection_max against max(|ref|, 1e-3 dalpha_perm)). "
             f"{' and '.join(sorted(DEGENERATE))} are left out of the summary: a load resting on a "

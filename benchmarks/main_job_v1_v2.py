@@ -4,7 +4,7 @@ interleaved v1, v2, v1, v2, ... (--repeat times; medians of the wall time).
 
     python benchmarks/main_job_v1_v2.py [--repeat 3] [--jobs 2]   -> results/main_job_v1_v2.md
 
-Each revision runs from its own exported package folder in a fresh process (the package
+v1 runs from its tree exported by revisions.export, each run in a fresh process (the package
 names are the same); the table each writes goes to a temporary folder. Run it alone on the
 machine (it uses every core it is given).
 """
@@ -19,18 +19,11 @@ import time
 from pathlib import Path
 
 import pandas as pd
+from revisions import export  # benchmarks/revisions.py: a revision's tree, exported from git
 
 ROOT = Path(__file__).resolve().parents[1]
 V1 = "fbbc326"
 SPEC = ROOT / "sweeps" / "b2k2.yaml"
-
-
-def export(rev: str, where: Path) -> Path:
-    """The package `fencesweep` of revision `rev`, exported from git into the new folder `where`."""
-    where.mkdir(parents=True)
-    arch = subprocess.run(["git", "archive", rev, "fencesweep"], cwd=ROOT, capture_output=True, check=True)
-    subprocess.run(["tar", "-x", "-C", str(where)], input=arch.stdout, check=True)
-    return where
 
 
 def run(tree: Path, out: Path, jobs: int) -> float:
@@ -50,7 +43,7 @@ def main() -> None:
     ap.add_argument("--jobs", type=int, default=2)
     a = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
-        trees = {"v1": export(V1, Path(tmp) / "v1"), "v2": ROOT}
+        trees = {"v1": export(V1), "v2": ROOT}
         outs = {k: Path(tmp) / f"{k}.parquet" for k in trees}
         for k in trees:  # warm the Numba caches (and the OS's)
             run(trees[k], outs[k], a.jobs)

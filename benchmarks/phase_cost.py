@@ -1,4 +1,4 @@
-"""Cost per phase of one work cycle: approach, contact, after the exit (issue 13).
+"""Cost per phase of one work cycle: approach, contact, after the exit.
 
 For the named cases (small_far, long_near; default element B2 = 72, K2 = 570, and the rigid
 drive) the cycle is split at the first load-fence contact A (t_first_contact) and at the

@@ -1,5 +1,5 @@
 """A new user's first run and the warm main job: an earlier revision and this tree side by side,
-interleaved in one run on the same machine (issue "Start fast").
+interleaved in one run on the same machine.
 
     python benchmarks/startup.py [--before 72ef80b] [--rounds 3] [--warm-rounds 5]
                                                                    -> prints, writes results/startup.md
@@ -15,17 +15,17 @@ Measured for both trees, alternately (before, this tree, before, ...):
     dependencies (--system-site-packages: "dependencies present"), then `fencesweep grid
     sweeps/b2k2.yaml` with an empty cache, 2 jobs: the two wall times and their sum;
   * warm main job: the same command again with the cache warm, on 1 and on 2 jobs, pairs
-    interleaved, --warm-rounds of them (the issue asks for 3; the noise of these machines is
-    such that 5 say more); the ratio of the medians (the issue's bar: 2 jobs >= 1.8 x 1 job)
-    and the median of the pairs' ratios;
+    interleaved, --warm-rounds of them (5 by default: on a noisy 2-core machine 3 say too
+    little); the ratio of the medians (the target: 2 jobs >= 1.8 x 1 job) and the median
+    of the pairs' ratios;
   * what 2 processes get from this machine, in each warm round: a CPU-bound loop (pure Python,
     no I/O, about as long as one worker's share of the main job) alone, then two copies at once;
     2 x alone / the pair's wall time is the most 2 jobs could give over 1 here and now;
   * compilations: Numba's compile events of the cold first cycle (numba.core.event), counted per
     function, in the process itself (the helper's are not counted: what it compiled this process
     loaded, counted apart).
-The earlier revision is exported with `git archive` into a temporary folder; this tree is the
-working tree. Run it alone on the machine: it takes about 15 minutes.
+The earlier revision is exported from git (benchmarks/revisions.py) into a temporary folder of
+its own (a fresh tree: nothing compiled or cached in it before); this tree is the working tree. Run it alone on the machine: it takes about 15 minutes.
 """
 from __future__ import annotations
 
@@ -39,6 +39,8 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+from revisions import export  # benchmarks/revisions.py: a revision's tree, exported from git
 
 ROOT = Path(__file__).resolve().parents[1]
 BEFORE = "72ef80b"
@@ -69,14 +71,6 @@ loaded = sum(sum(o._cache_hits.values()) for o in gc.get_objects() if isinstance
 print(json.dumps({"seconds": time.perf_counter() - t, "compilations": len(done), "functions": len(c),
                   "most": c.most_common(8), "loaded": loaded}))
 """
-
-
-def export(rev: str, where: Path) -> Path:
-    """The whole tree of revision `rev` (package, pyproject.toml, sweeps), exported from git."""
-    where.mkdir(parents=True)
-    arch = subprocess.run(["git", "archive", rev], cwd=ROOT, capture_output=True, check=True)
-    subprocess.run(["tar", "-x", "-C", str(where)], input=arch.stdout, check=True)
-    return where
 
 
 def _env(tree: Path, cache: Path, python_path: bool = True) -> dict:
@@ -306,7 +300,7 @@ def main() -> None:
         m, trees, rounds, warm_rounds = raw["measured"], dict.fromkeys(raw["trees"]), raw["rounds"], raw["warm_rounds"]
     else:
         with tempfile.TemporaryDirectory() as tmp:
-            trees = {a.before: export(a.before, Path(tmp) / "before"), "this tree": ROOT}
+            trees = {a.before: export(a.before, Path(tmp) / "before"), "this tree": ROOT}  # a fresh tree
             m = measure(trees, Path(tmp), a.rounds, a.warm_rounds)
         rounds, warm_rounds = a.rounds, a.warm_rounds
         RAW.write_text(json.dumps({"trees": list(trees), "rounds": rounds, "warm_rounds": warm_rounds, "measured": m},

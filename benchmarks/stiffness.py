@@ -3,10 +3,10 @@ independent reference model, at the same tolerance.
 
     python benchmarks/stiffness.py        -> prints a table, writes results/stiffness.md
 
-Issue "Kernel v2" asks to measure a linearly implicit (Rosenbrock) step against the explicit
-one where sustained contact or a stiff Kelvin element makes the explicit step
-stability-bound. Before building one: would an implicit method take longer steps here at all?
-This script answers with the reference (benchmarks/reference.py, scipy's solve_ivp, sharing
+Would a linearly implicit (Rosenbrock) step beat the explicit one where sustained contact or
+a stiff Kelvin element could make the explicit step stability-bound? Before building one:
+would an implicit method take longer steps here at all?
+This script answers with the reference (tests/reference/model.py, scipy's solve_ivp, sharing
 no code with the engine) on the named cases, integrated at rtol = numerics.TOL by two
 explicit Runge-Kutta pairs (RK45: Dormand-Prince 5(4), the engine's pair; DOP853) and two
 implicit methods (Radau IIA of order 5; BDF of orders 1-5), each with the same events and
@@ -25,9 +25,10 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(ROOT), str(ROOT / "benchmarks")]  # this tree's package, the reference beside it
+# this tree's package; tests/: the independent reference (tests/reference/)
+sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
 
-import reference as R  # noqa: E402
+from reference import model as R  # noqa: E402
 
 METHODS = ("RK45", "DOP853", "Radau", "BDF")
 CASES = ("small_far", "long_near")
@@ -61,7 +62,7 @@ def main() -> None:
         "# Is the cycle stiff at the engine's tolerance?",
         "",
         "Regenerate: `python benchmarks/stiffness.py` (the method is in its docstring). The reference model "
-        f"(benchmarks/reference.py) integrated by solve_ivp at rtol = {NU.TOL:g}, its own atol, with the same "
+        f"(tests/reference/model.py) integrated by solve_ivp at rtol = {NU.TOL:g}, its own atol, with the same "
         "events and restarts for every method; the error is peak_force's against the reference at rtol 1e-10 "
         "(DOP853). *rhs*: the reference's count of its right-hand side's evaluations (finite-difference "
         "Jacobians and the fence's run after the exit included). "

@@ -1,5 +1,5 @@
-"""Cost of a stream per cycle against the cycle scene (MODEL.md §14, issue 9: "a stream costs
-about n_cycles cycles").
+"""Cost of a stream per cycle against the cycle scene (docs/model.md §14): does a stream of
+n_cycles cost about n_cycles cycles?
 
     python benchmarks/stream_cost.py      -> prints a table, writes results/stream_cost.md
 

@@ -40,6 +40,7 @@ from pathlib import Path
 
 import pandas as pd
 import psutil
+from revisions import export  # benchmarks/revisions.py: a revision's tree, exported from git
 
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLE_EVERY = 0.5  # seconds between memory samples
@@ -163,8 +164,9 @@ def run(tree: Path, spec: str, jobs: int, out: Path) -> dict:
 def with_orchestration_of(rev: str, tree: Path, where: Path) -> Path:
     """A copy of `tree` (its package and the spec) whose ORCHESTRATION files are those of git revision `rev`
     (both of one layout: the files of the other do not fit the package)."""
-    rev_files = subprocess.run(["git", "ls-tree", "-r", "--name-only", rev, "fencesweep"], cwd=ROOT, check=True,
-                               capture_output=True, text=True).stdout.split()
+    src = export(rev)
+    rev_files = sorted(p.relative_to(src).as_posix() for p in (src / "fencesweep").rglob("*")
+                       if p.is_file() and "__pycache__" not in p.parts)
     kind = layout(p.relative_to(tree).as_posix() for p in (tree / "fencesweep").rglob("*.py"))
     if layout(rev_files) != kind:
         raise SystemExit(f"--orchestration-of {rev}: that revision's package is {layout(rev_files)}, the one "
@@ -179,11 +181,8 @@ def with_orchestration_of(rev: str, tree: Path, where: Path) -> Path:
         if not names:  # not in that revision
             (copy / entry).unlink(missing_ok=True)
         for name in names:
-            text = subprocess.run(["git", "show", f"{rev}:{name}"], cwd=ROOT, check=True, capture_output=True,
-                                  text=True)
-            target = copy / name
-            target.parent.mkdir(parents=True, exist_ok=True)
-            target.write_text(text.stdout)
+            (copy / name).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(src / name, copy / name)
     return copy
 
 

@@ -3,8 +3,9 @@
     python benchmarks/tolerance_scan.py     -> prints a table, writes results/tolerance_scan.md
 
 For each tolerance (numerics.TOL x step_factor^5) every scene of
-benchmarks/reference_results.csv is run with its fully resolved parameters and compared
-with the independent reference exactly as tests/test_validation.py does: scenes that
+tests/reference/results.csv is run with its fully resolved parameters and compared
+with the independent reference exactly as tests/test_validation.py does
+(tests/reference/compare.py): scenes that
 disagree (outcome, touches, or an error above the test's bound), the largest errors in
 peak_force, deflection_max and t_exit, and the steps over all scenes. numerics.TOL is the
 loosest of these at which the misses are those of the tightest.
@@ -15,27 +16,29 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(ROOT), str(ROOT / "tests"), str(ROOT / "benchmarks")]  # this tree's package first
+# this tree's package first; tests/: the independent reference (tests/reference/)
+sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
 
-import make_reference  # noqa: E402
-import test_validation as tv  # noqa: E402
+import reference  # noqa: E402
 from kernel_v1_v2 import LOOSER_TOLS, step_factor  # noqa: E402  (the kernel's time at those)
+from reference import compare  # noqa: E402
 
 import fencesweep  # noqa: E402
 from fencesweep.kernel import numerics  # noqa: E402
 
 TOLS = (1e-8, 1e-7, numerics.TOL) + LOOSER_TOLS
+ROWS = reference.rows()
 
 
 def scan(tol: float) -> dict:
     sf = step_factor(tol)
     worst = {k: (0.0, "") for k in ("peak_force", "deflection_max", "t_exit")}
     missed, steps = [], 0
-    for ref in tv.ROWS:
-        res = fencesweep.simulate("cycle", **{**make_reference.row_params(ref), "step_factor": sf})
-        if tv.mismatches(res, ref):
+    for ref in ROWS:
+        res = fencesweep.simulate("cycle", **{**reference.row_params(ref), "step_factor": sf})
+        if compare.mismatches(res, ref):
             missed.append(ref["id"])
-        for k, e in tv.errors(res, ref).items():
+        for k, e in compare.errors(res, ref).items():
             if e > worst[k][0]:
                 worst[k] = (e, ref["id"])
         steps += int(res["n_steps"])
@@ -45,8 +48,8 @@ def scan(tol: float) -> dict:
 def main() -> None:
     rows = [scan(t) for t in TOLS]
     lines = ["# Tolerance scan: the validation set at several tolerances", "",
-             f"Regenerate: `python benchmarks/tolerance_scan.py`. {len(tv.ROWS)} scenes, each with its fully "
-             f"resolved parameters, judged as in tests/test_validation.py (bound {tv.ERR_BOUND:g}, with its "
+             f"Regenerate: `python benchmarks/tolerance_scan.py`. {len(ROWS)} scenes, each with its fully "
+             f"resolved parameters, judged as in tests/test_validation.py (bound {compare.ERR_BOUND:g}, with its "
              f"floors). Default tolerance (numerics.TOL): {numerics.TOL:g}.", "",
              "| tol | step_factor | scenes missed | worst peak_force | worst deflection_max | worst t_exit | steps, all scenes |",
              "|---|---|---|---|---|---|---|"]

@@ -1,14 +1,14 @@
 """Does a table's verification tell its error? The difference a sweep's verification reports
 (each run against a re-run at tol / 10, fencesweep/study/sweep/verify.py) and the per-row
-error_estimate, both against the true error of the validation scenes (issue "Trust", item 1).
+error_estimate, both against the true error of the validation scenes.
 
     python benchmarks/verification.py   -> prints; writes results/figures/verification.png and
                                            the section "A table's own check" of
                                            results/work_precision.md (work_precision.py writes
                                            the same section when it regenerates the page)
 
-For every scene of benchmarks/reference_results.csv (the independent reference: SciPy DOP853 at
-rtol 1e-10, benchmarks/reference.py), with its fully resolved parameters:
+For every scene of tests/reference/results.csv (the independent reference: SciPy DOP853 at
+rtol 1e-10, tests/reference/model.py), with its fully resolved parameters:
   * true error e: the engine at the default setting against the reference;
   * verification difference d: the engine at the default setting against the engine at
     step_factor x verify.STEP_FACTOR_SCALE (tol / 10), exactly what a sweep's verification
@@ -27,10 +27,10 @@ import numpy as np
 import pandas as pd
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(ROOT / "benchmarks"))
+# this tree's package first; tests/: the independent reference (tests/reference/)
+sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
 
-import make_reference  # noqa: E402
+import reference  # noqa: E402
 
 import fencesweep  # noqa: E402
 from fencesweep.study.sweep import accuracy  # noqa: E402
@@ -46,8 +46,8 @@ def measure() -> pd.DataFrame:
     """One row per (scene, quantity): the true error e, the verification difference d, the
     row's error_estimate."""
     rows = []
-    for ref in pd.read_csv(make_reference.OUT).to_dict("records"):
-        params = make_reference.row_params(ref)
+    for ref in reference.rows():
+        params = reference.row_params(ref)
         a = fencesweep.simulate("cycle", **params)
         t = fencesweep.simulate("cycle", **{**params, "step_factor": params.get("step_factor", 1.0)
                                             * STEP_FACTOR_SCALE})

@@ -2,9 +2,9 @@
 
     python benchmarks/warm_revisions.py [REV ...] [--rounds 4]   -> prints, writes results/warm_revisions.md
 
-Each revision (default: REVISIONS, the base of this round's work and the commits that changed the
-kernel since, then this working tree) is exported with `git archive` into a temporary folder and
-given a Numba cache of its own, warmed first. Then, for `rounds` rounds, every revision in turn
+Each revision (default: REVISIONS, the flat package and the commits that changed the kernel
+since, then this working tree) is exported from git (benchmarks/revisions.py) and given a Numba
+cache of its own in a temporary folder, warmed first. Then, for `rounds` rounds, every revision in turn
 runs in a fresh process: the 60 scenes of the main job's fixed sample (sweeps/b2k2.yaml, the seed
 of benchmarks/edges.py) through the public call `fencesweep.simulate` (the same code in every
 revision), six passes, and the process reports its fastest pass as CPU ms a cycle (the fastest
@@ -22,14 +22,16 @@ import sys
 import tempfile
 from pathlib import Path
 
+from revisions import export  # benchmarks/revisions.py: a revision's tree, exported from git
+
 ROOT = Path(__file__).resolve().parents[1]
 REVISIONS = {
-    "72ef80b": "the base of Layers / Start fast / Trust",
-    "d727f56": "Layers: the package in sub-packages",
+    "72ef80b": "the flat package, before the sub-packages",
+    "d727f56": "the package in sub-packages",
     "b0b1218": "one step driver, the cycle split by concept, one signature per kernel function",
     "77620a2": "generic functions as templates compiled once per scene",
-    "b70ff0b": "before the Trust edges",
-    "fc50e29": "Trust: tolerance scaled near grazes and for free fences (+3 % steps)",
+    "b70ff0b": "before the tolerance scale near grazes and for free fences",
+    "fc50e29": "tolerance scaled near grazes and for free fences",
 }
 WORKER = r"""
 import time, numpy as np, fencesweep
@@ -64,13 +66,7 @@ def main() -> None:
     ap.add_argument("--out", default=str(ROOT / "results" / "warm_revisions.md"))
     a = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
-        trees = {}
-        for rev in a.revisions:
-            where = Path(tmp) / rev
-            where.mkdir()
-            arch = subprocess.run(["git", "archive", rev], cwd=ROOT, capture_output=True, check=True)
-            subprocess.run(["tar", "-x", "-C", str(where)], input=arch.stdout, check=True)
-            trees[rev] = where
+        trees = {rev: export(rev) for rev in a.revisions}
         trees["this tree"] = ROOT
         caches = {n: Path(tmp) / f"cache-{i}" for i, n in enumerate(trees)}
         for n, t in trees.items():  # warm every cache (cold compiles, one at a time)
@@ -91,7 +87,8 @@ def main() -> None:
              "median | rounds |", "|---|---|---:|---:|---:|---|"]
     for n in names:
         best, med = min(times[n]), statistics.median(times[n])
-        lines.append(f"| {n} | {REVISIONS.get(n, 'the working tree')} | {best:.4f} | {best / base - 1:+.1%} | "
+        what = REVISIONS.get(n, "the working tree" if n == "this tree" else "")
+        lines.append(f"| {n} | {what} | {best:.4f} | {best / base - 1:+.1%} | "
                      f"{med:.4f} | " + ", ".join(f"{x:.4f}" for x in times[n]) + " |")
     text = "\n".join(lines) + "\n"
     print(text)

@@ -1,9 +1,9 @@
 """Speed against error: the engine, its RK4 baseline, compiled LSODA and SciPy's solve_ivp.
 
-Every scene of benchmarks/reference_results.csv (benchmarks/validation_scenes.yaml run by
-benchmarks/reference.py: the same model written independently, SciPy DOP853 at rtol 1e-10
-with event restarts) is run with its *fully resolved* MODEL.md §12 parameters
-(make_reference.row_params: every value, I2 and t_max explicit) by
+Every scene of tests/reference/results.csv (tests/reference/scenes.yaml run by
+tests/reference/model.py: the same model written independently, SciPy DOP853 at rtol 1e-10
+with event restarts) is run with its *fully resolved* docs/model.md §12 parameters
+(reference.row_params: every value, I2 and t_max explicit) by
 
   fencesweep DOPRI5   : the engine's default integrator at step_factor 4 ... 0.1
                         (tolerance 1e-6 x step_factor^5)
@@ -12,10 +12,10 @@ with event restarts) is run with its *fully resolved* MODEL.md §12 parameters
                         right-hand side of the reference model, LSODA at several rtol, peak
                         refined between the output samples); skipped, with the reason
                         printed, when numbalsoda is not installed
-  solve_ivp           : benchmarks/reference.py itself (plain-Python right-hand side) with
+  solve_ivp           : tests/reference/model.py itself (plain-Python right-hand side) with
                         RK45, DOP853 and LSODA at several rtol
 
-and judged as tests/test_validation.py judges the engine: relative errors of peak_force,
+and judged as tests/test_validation.py judges the engine (tests/reference/compare.py): relative errors of peak_force,
 deflection_max and t_exit with that test's floors (forces against max(|ref|, 0.1 x the
 scene's free-fall force), angles against max(|ref|, 0.01 rad), times against max(|ref|,
 1 ms)), the outcome, and the touches (a load-fence contact seen or not, a rail contact
@@ -40,10 +40,11 @@ import numpy as np
 import pandas as pd
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(ROOT), str(ROOT / "benchmarks"), str(ROOT / "tests")]
+# this tree's package first; tests/: the independent reference (tests/reference/)
+sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
 
-import make_reference  # noqa: E402
-import test_validation as tv  # noqa: E402  (the validation test's error definition and floors)
+import reference  # noqa: E402
+from reference import compare  # noqa: E402  (the validation's error definition and floors)
 
 from fencesweep.kernel import numerics  # noqa: E402
 
@@ -62,11 +63,11 @@ QUANTITIES = ("peak_force", "deflection_max", "t_exit")
 def judge(res: dict, ref) -> dict:
     """Errors of one result against its reference row, as tests/test_validation.py has them,
     the largest of the three (e_max), and whether the outcome and the touches agree."""
-    e = {f"e_{k}": v for k, v in tv.errors(res, ref).items()}
+    e = {f"e_{k}": v for k, v in compare.errors(res, ref).items()}
     e["e_max"] = max(e.values())
-    fence, rail = tv.touches(ref)
+    fence, rail = compare.touches(ref)
     got_fence = math.isfinite(res["t_first_contact"])
-    got_rail = res["peak_rail_force"] > tv.RAIL_TOUCH * float(ref["freefall_force"])
+    got_rail = res["peak_rail_force"] > compare.RAIL_TOUCH * float(ref["freefall_force"])
     e["outcome_ok"] = res["outcome"] == ref["outcome"]
     e["touch_ok"] = got_fence == fence and got_rail == rail
     return e
@@ -91,7 +92,7 @@ def run_engine(refs: list[dict], repeat: int) -> pd.DataFrame:
     configs += [(RK4, f"dt={dt:g}", dt, {"integrator": "rk4", "dt": dt}) for dt in RK4_DTS]
     for solver, setting, knob, extra in configs:
         for ref in refs:
-            kw = {**make_reference.row_params(ref), **extra}
+            kw = {**reference.row_params(ref), **extra}
             dt, r = _timed(lambda kw=kw: fencesweep.simulate("cycle", **kw), repeat)
             rows.append({"solver": solver, "setting": setting, "knob": knob, "id": ref["id"], "time": dt,
                          "steps": r["n_steps"], "rhs": np.nan, "outcome": r["outcome"], **judge(r, ref)})
@@ -118,7 +119,7 @@ def run_peer(repeat: int) -> pd.DataFrame | None:
 
 
 def _ivp_one(params: dict, method: str, rtol: float) -> dict:
-    from reference import simulate_reference
+    from reference.model import simulate_reference
 
     t = time.process_time()
     r = simulate_reference(params, method=method, rtol=rtol)
@@ -130,7 +131,7 @@ def run_ivp(refs: list[dict], jobs: int) -> pd.DataFrame:
 
     rows = []
     for method, rtol in IVP_CONFIGS:
-        outs = Parallel(n_jobs=jobs)(delayed(_ivp_one)(make_reference.row_params(ref), method, rtol)
+        outs = Parallel(n_jobs=jobs)(delayed(_ivp_one)(reference.row_params(ref), method, rtol)
                                      for ref in refs)
         for ref, o in zip(refs, outs):
             r = o["res"]
@@ -196,7 +197,7 @@ def plot(summary: pd.DataFrame, df: pd.DataFrame, path: Path) -> None:
             if solver == ENGINE and default.any():
                 ax.annotate("default", (x[default].iloc[0], y[default].iloc[0]), xytext=(6, 0), fontsize=8,
                             textcoords="offset points", va="center", color=color)
-        ax.axhline(tv.ERR_BOUND, color="k", lw=0.8, ls="--", label=f"validation bound {tv.ERR_BOUND:g} "
+        ax.axhline(compare.ERR_BOUND, color="k", lw=0.8, ls="--", label=f"validation bound {compare.ERR_BOUND:g} "
                    "(tests/test_validation.py)")
         ax.set_xlabel("CPU time per cycle [ms] (median over scenes)")
         ax.set_title(f"{title} of {int(s.scenes.max())}: its largest relative error", fontsize=10)
@@ -235,7 +236,7 @@ def _engine_prose(summary: pd.DataFrame, df: pd.DataFrame, d, ref_rtol: float) -
     eng = summary[summary.solver == ENGINE]
     txt = []
     if d is not None:
-        over = df[(df.solver == ENGINE) & (df.setting == "step_factor=1") & (df.e_max > tv.ERR_BOUND)]
+        over = df[(df.solver == ENGINE) & (df.setting == "step_factor=1") & (df.e_max > compare.ERR_BOUND)]
         txt.append(
             f"**The engine at its default** (step_factor 1): {d['median ms per cycle']:.3g} ms per cycle "
             f"(median), outcome agreement {d['outcome agreement']:.3g}, touch agreement "
@@ -243,7 +244,7 @@ def _engine_prose(summary: pd.DataFrame, df: pd.DataFrame, d, ref_rtol: float) -
             f"{d['max e(deflection_max)']:.2g} (deflection_max), {d['max e(t_exit)']:.2g} (t_exit), the worst "
             f"scene {d['worst scene']}; median errors {d['median e(peak_force)']:.2g}, "
             f"{d['median e(deflection_max)']:.2g}, {d['median e(t_exit)']:.2g}. Scenes above the validation bound "
-            f"{tv.ERR_BOUND:g}: " + (", ".join(f"{i} ({e:.2g})" for i, e in zip(over.id, over.e_max))
+            f"{compare.ERR_BOUND:g}: " + (", ".join(f"{i} ({e:.2g})" for i, e in zip(over.id, over.e_max))
                                      if len(over) else "none") + ".")
     if len(eng) < 2:
         return txt
@@ -360,7 +361,7 @@ def main() -> None:
 
 
 def measure(args) -> pd.DataFrame:
-    refs = tv.ROWS
+    refs = reference.rows()
     parts = [run_engine(refs, args.repeat)]
     if not args.no_peer:
         parts.append(run_peer(args.repeat))
@@ -370,7 +371,7 @@ def measure(args) -> pd.DataFrame:
 
 
 def write_pages(df: pd.DataFrame, args, out: Path) -> None:
-    ref_df = pd.read_csv(make_reference.OUT)
+    ref_df = pd.read_csv(reference.RESULTS)
     summary = summarise(df)
     ref_rtol, ref_method = float(ref_df.ref_rtol.max()), str(ref_df.ref_method.iloc[0])
     n = len(ref_df)
@@ -379,14 +380,14 @@ def write_pages(df: pd.DataFrame, args, out: Path) -> None:
             "`bash results/regenerate.sh`). Figure: `results/figures/work_precision.png`; every scene's "
             "row: `results/work_precision.csv`.", "",
             "**What is measured.** Each of the "
-            f"{n} scenes of `benchmarks/reference_results.csv` (the validation set, "
-            "`benchmarks/validation_scenes.yaml`, from the edges of MODEL.md §12, with the grazes) is run with its "
+            f"{n} scenes of `tests/reference/results.csv` (the validation set, "
+            "`tests/reference/scenes.yaml`, from the edges of docs/model.md §12, with the grazes) is run with its "
             "fully resolved §12 parameters (every value of the reference's row) and compared with the independent "
-            f"reference (`benchmarks/reference.py`: the model written separately, SciPy {ref_method} at rtol "
+            f"reference (`tests/reference/model.py`: the model written separately, SciPy {ref_method} at rtol "
             f"{ref_rtol:g}, event restarts) as `tests/test_validation.py` does: relative errors of peak_force, "
-            f"deflection_max and t_exit with that test's floors (forces against max(|ref|, {tv.FORCE_FLOOR:g} x the "
-            f"scene's free-fall force), angles against max(|ref|, {tv.ANGLE_FLOOR:g} rad), times against "
-            f"max(|ref|, {tv.TIME_FLOOR * 1e3:g} ms)), agreement of the outcome and of the touches (load–fence and "
+            f"deflection_max and t_exit with that test's floors (forces against max(|ref|, {compare.FORCE_FLOOR:g} x the "
+            f"scene's free-fall force), angles against max(|ref|, {compare.ANGLE_FLOOR:g} rad), times against "
+            f"max(|ref|, {compare.TIME_FLOOR * 1e3:g} ms)), agreement of the outcome and of the touches (load–fence and "
             "rail contact seen or not). Time: CPU time per cycle, warm (JIT and caches excluded), the median of "
             f"{args.repeat} calls per scene after a warm-up call (solve_ivp: one call per scene); the table "
             "gives the median and the mean over the scenes, the figure the median. Settings: the engine's "
