@@ -4,11 +4,10 @@ nothing imported).
 (a) every numbered equation has a row in the implementation index, and every row an equation;
 (b) every function the index names exists;
 (c) each indexed function is small (<= MAX_LINES) and its docstring names its equation label
-    "(n.k)" or its section ("model.md §n"; "MODEL.md §n", the outside specification, does not
-    count). Rows marked "(inline)" (a formula inside a larger function) are exempt from both;
+    "(n.k)" or its section ("model.md §n"). Rows marked "(inline)" (a formula inside a larger function) are exempt from both;
     PENDING lists the functions, in files that belong to others, whose docstrings do not cite
     docs/model.md yet (their docstring check is a strict xfail);
-(d) every "MODEL.md §n" / "model.md §n" under fencesweep/ names a section or subsection heading
+(d) every "model.md §n" under fencesweep/ names a section or subsection heading
     of docs/model.md ("## §n Title", "### §n.k Title"), and every "model.md (n.k)" an equation.
 
 An equation is a line inside a fenced block of docs/model.md that ends with its label (n.k);
@@ -27,7 +26,7 @@ ROOT = Path(__file__).resolve().parents[1]
 DOC = ROOT / "docs" / "model.md"
 PACKAGE = ROOT / "fencesweep"
 MAX_LINES = 40
-#: the sections of the specification (shared/MODEL.md) that the code cites, kept under their numbers
+#: the sections the code and the specs cite, kept under their numbers (§1-§14 the model, §13.3 a paper's figure)
 SPEC_SECTIONS = {str(n) for n in range(1, 15)} | {"5.1", "5.2", "5.3", "13.3"}
 INDEX_HEADING = "## Implementation index"
 
@@ -36,10 +35,10 @@ LABEL_AT_END = re.compile(r"\((\d+\.\d+)\)\s*$")
 LABEL = re.compile(r"\((\d+\.\d+)\)")
 UNITS = re.compile(r"\[[^\]]+\]")
 ROW = re.compile(r"^\|\s*\((\d+\.\d+)\)\s*\|[^|]*\|\s*`([\w/.]+)::(\w+)`\s*(\(inline\))?\s*\|\s*$")
-SECTION_CITATION = re.compile(r"(?:MODEL|model)\.md\s+(§\d+(?:\.\d+)?(?:\s*(?:,|-|–|and|or)\s*§\d+(?:\.\d+)?)*)")
+SECTION_CITATION = re.compile(r"model\.md\s+(§\d+(?:\.\d+)?(?:\s*(?:,|-|–|and|or)\s*§\d+(?:\.\d+)?)*)")
 SECTION_TOKEN = re.compile(r"§(\d+(?:\.\d+)?)|([-–])")
 EQUATION_CITATION = re.compile(r"model\.md\s+(\(\d+\.\d+\)(?:\s*(?:,|-|–|and|or)\s*\(\d+\.\d+\))*)")
-#: a docstring citing this document (lower case: "MODEL.md" is the outside specification)
+#: a docstring citing this document
 DOC_SECTION_CITATION = re.compile(r"(?<![A-Za-z])model\.md §(\d+)")
 
 #: indexed functions whose docstrings do not cite docs/model.md yet, in files that others own or
@@ -270,6 +269,6 @@ def test_every_section_and_equation_the_code_cites_exists():
 def test_the_citation_parser_reads_lists_and_ranges():
     assert _sections_cited("§1-§6, §9-§11") == ["1", "2", "3", "4", "5", "6", "9", "10", "11"]
     assert _sections_cited("§5.2") == ["5.2"]
-    line = "(MODEL.md §4, §5, §6) and docs/model.md (4.1), (4.2); MODEL.md §12."
+    line = "(docs/model.md §4, §5, §6) and docs/model.md (4.1), (4.2); model.md §12."
     assert [m.group(1) for m in SECTION_CITATION.finditer(line)] == ["§4, §5, §6", "§12"]
     assert [LABEL.findall(m.group(1)) for m in EQUATION_CITATION.finditer(line)] == [["4.1", "4.2"]]
