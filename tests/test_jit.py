@@ -2,12 +2,21 @@
 every kernel function compiles once, without reference counting, as IR for its callers; only
 the entry points are called from Python; a first run says it compiles, and two processes
 started at once on an empty cache both finish, one compiling while the other waits."""
+import ast
+import contextlib
 import importlib
+import importlib.util
 import json
+import logging
+import os
 import pkgutil
+import re
+import shutil
 import subprocess
 import sys
 import textwrap
+import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -65,20 +74,74 @@ def test_a_kernel_function_is_not_called_from_python_but_its_copy_is():
     assert n == n_el == pytest.approx(4e6 * 1e-3 ** 1.5)
 
 
-def test_the_cache_directory_is_named_by_the_kernel_sources(tmp_path):
-    """Editing any kernel source gives another directory: no stale kernel is ever loaded."""
+def _edit(path):
+    with open(path, "a") as fh:
+        fh.write("\n# an edit\n")
+
+
+def test_the_cache_directory_is_named_by_the_kernel_sources_only(tmp_path):
+    """Editing a kernel source gives another directory (no stale kernel is ever loaded); editing
+    the orchestration around the kernels keeps it (the kernels stay compiled)."""
     assert cache.DIR.name == f"fencesweep-{cache.HASH[:16]}"
-    code = textwrap.dedent(f"""
-        import shutil, sys
-        shutil.copytree({str(cache.PKG)!r}, {str(tmp_path / "fencesweep")!r})
-        with open({str(tmp_path / "fencesweep" / "model" / "contact.py")!r}, "a") as fh:
-            fh.write("\\n# an edit\\n")
-        sys.path.insert(0, {str(tmp_path)!r})
-        from fencesweep.kernel import cache
-        print(cache.HASH)
-    """)
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    assert out.stdout.strip().splitlines()[-1] != cache.HASH
+    pkg = tmp_path / "fencesweep"
+    shutil.copytree(cache.PKG, pkg, ignore=shutil.ignore_patterns("__pycache__"))
+    hashed = [p.relative_to(pkg).as_posix() for p in cache._kernel_sources(pkg)]
+    before = cache.kernel_hash(pkg)
+    others = ["model/simulate.py", "model/params.py", "model/prepare.py", "model/scenes/freefall.py", "cli.py",
+              sorted(pkg.glob("study/*.py"))[0], sorted(pkg.glob("report/*.py"))[0]]
+    for name in others:
+        assert str(name) not in hashed
+        _edit(pkg / name)
+        assert cache.kernel_hash(pkg) == before, name
+    for name in ("kernel/numerics.py", "kernel/jit.py", "model/contact.py", "model/scenes/cycle/layout.py",
+                 "model/calibrate.py"):
+        _edit(pkg / name)
+        after = cache.kernel_hash(pkg)
+        assert after != before, name
+        before = after
+
+
+def _module_file(name: str) -> str:
+    return Path(importlib.import_module(name).__file__).relative_to(cache.PKG).as_posix()
+
+
+def _package_imports(rel: str) -> set:
+    """The package's modules that module `rel` imports at its top level (what its compiled
+    functions can read: functions and constants)."""
+    tree = ast.parse((cache.PKG / rel).read_text())
+    found = set()
+    for node in tree.body:
+        names = []
+        if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("fencesweep"):
+            names = [f"{node.module}.{a.name}" for a in node.names] + [node.module]
+        elif isinstance(node, ast.Import):
+            names = [a.name for a in node.names if a.name.startswith("fencesweep")]
+        for name in names:
+            with contextlib.suppress(ImportError):
+                if importlib.util.find_spec(name) is not None:
+                    found.add(_module_file(name))
+    return {f for f in found if not f.endswith("__init__.py")}
+
+
+def test_the_hash_covers_every_module_a_kernel_is_compiled_from():
+    hashed = {p.relative_to(cache.PKG).as_posix() for p in cache._kernel_sources()}
+    assert all((cache.PKG / name).is_file() for name in hashed)
+    compiled = {_module_file(d.py_func.__module__) for _, d in _dispatchers()}
+    assert compiled and compiled <= hashed  # every module that defines a compiled function
+    # ... every package module those import at their top level (Numba compiles a global's value
+    # into the code), and so on (the compile machinery of kernel/ is hashed whole)
+    todo, seen = list(compiled), set()
+    while todo:
+        rel = todo.pop()
+        if rel not in seen and not rel.startswith("kernel/"):
+            seen.add(rel)
+            todo.extend(_package_imports(rel))
+    assert seen <= hashed, seen - hashed
+    # ... and every module that solves a value kept beside the compiled kernels (cache.solved)
+    solving = {p.relative_to(cache.PKG).as_posix() for p in cache.PKG.rglob("*.py")
+               if re.search(r"\bsolved\(", p.read_text()) and not p.is_relative_to(cache.PKG / "kernel")}
+    assert solving and solving <= hashed
+    assert not any(name.startswith(("study/", "report/")) or "/" not in name for name in hashed)
 
 
 #: a process that runs every scene variant on an empty cache and reports what it compiled
@@ -116,9 +179,9 @@ COLD_RUN = textwrap.dedent("""
 
 
 def test_two_processes_on_an_empty_cache_both_finish_and_every_function_compiles_once(tmp_path):
-    """The issue's race: both start at once; one compiles (and says so) under the compile lock,
-    the other waits and loads the kernels; both give the in-process results."""
-    env = {**__import__("os").environ, "NUMBA_CACHE_DIR": str(tmp_path)}
+    """Two first runs started at once: one compiles (and says so) under the compile lock, the
+    other waits and loads the kernels; both give the in-process results."""
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)}
     procs = [subprocess.Popen([sys.executable, "-c", COLD_RUN], env=env, stdout=subprocess.PIPE,
                               stderr=subprocess.PIPE, text=True) for _ in range(2)]
     outs = [p.communicate(timeout=600) for p in procs]
@@ -158,18 +221,21 @@ def test_a_warm_process_says_nothing(capfd):
     assert r.stderr == ""
 
 
-def test_loading_the_kernels_imports_neither_scipy_linalg_nor_cffi_nor_coverage():
-    """jit.py answers Numba's BLAS probe "no" while Numba loads its NumPy support (the probe
-    imports all of scipy.linalg, 0.27 s a process) and hides cffi and coverage, which no kernel
-    uses; the kernels run the same without them."""
+def test_loading_the_kernels_imports_neither_scipy_linalg_nor_coverage():
+    """numba_setup.py defers Numba's BLAS probe (it imports all of scipy.linalg) to the first
+    compile that asks, and hides coverage while Numba loads; the kernels run the same without
+    them, and Numba's answer to the probe, once asked, is its own."""
     here = api.simulate(case="small_far")
-    unused = ["scipy.linalg", "cffi", "pycparser", "coverage"]
+    unused = ["scipy.linalg", "coverage"]
     code = ("import sys, json\nfrom fencesweep.model import simulate as api\nr = api.simulate(case='small_far')\n"
-            f"print(json.dumps([[m for m in {unused!r} if m in sys.modules], r['peak_force']]))")
+            f"imported = [m for m in {unused!r} if m in sys.modules]\n"
+            "from numba.np import arraymath, linalg\n"
+            "print(json.dumps([imported, r['peak_force'], bool(arraymath._HAVE_BLAS)]))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    imported, peak = json.loads(out.stdout.strip().splitlines()[-1])
+    imported, peak, blas = json.loads(out.stdout.strip().splitlines()[-1])
     assert imported == []
     assert peak == here["peak_force"]
+    assert blas is (importlib.util.find_spec("scipy") is not None)
 
 
 def test_a_module_imported_already_is_not_hidden():
@@ -186,3 +252,66 @@ def test_import_fencesweep_loads_no_numba():
     code = "import sys, fencesweep; print('numba' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False" and fencesweep.__version__
+
+
+def test_a_kernel_function_shared_by_both_processes_is_saved_by_one(tmp_path, monkeypatch):
+    """During a shared compile both processes may compile one kernel function; its cache entry is
+    written by whichever saves it first, never by both (kernel/share.py KernelCache)."""
+    from numba.core import caching
+    from numba import float64
+
+    saved = []
+    monkeypatch.setattr(caching.FunctionCache, "save_overload", lambda self, sig, data: saved.append(sig))
+    (tmp_path / "entries").mkdir()
+    monkeypatch.setattr(share, "_session", share._Session(tmp_path, share.Plan(None, [], None), None))
+    sig = (float64, float64)
+    for _ in range(2):  # this process's and the helper's cache of the function
+        share.KernelCache(kelvin_force.py_func).save_overload(sig, object())
+    share.KernelCache(kelvin_force.py_func).save_overload((float64,), object())  # another signature
+    assert saved == [sig, (float64,)]
+
+
+#: a compile plan of one entry point (which calls a kernel function), with a prelude that fails or hangs
+PLAN = textwrap.dedent("""
+    import time
+    from fencesweep.kernel.jit import entry, kernel
+    from fencesweep.kernel.share import Plan
+
+    @kernel()
+    def twice(x):
+        return 2.0 * x
+
+    @entry()
+    def run(x):
+        return twice(x)
+
+    def prelude(vals):
+        if vals["how"] == "fails":
+            raise ValueError("the prelude failed on purpose")
+        time.sleep(60)
+
+    def plan():
+        return Plan((run, (1.0,)), [], prelude)
+""")
+
+
+@pytest.mark.skipif(not share._helper_enabled(), reason="the compile helper needs two usable cores")
+@pytest.mark.parametrize("how, limit, said", [("fails", 60.0, "ValueError: the prelude failed on purpose"),
+                                              ("hangs", 2.0, "had not finished prelude after 2 s")])
+def test_a_failing_or_stuck_helper_is_logged_and_stopped(tmp_path, monkeypatch, caplog, how, limit, said):
+    """What the helper writes on stderr is logged, and a wait for it ends after WAIT_LIMIT; its
+    directory (a new one, tempfile.mkdtemp) is removed either way."""
+    (tmp_path / "fencesweep_test_plan.py").write_text(PLAN)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join([str(tmp_path), str(cache.PKG.parent)]))
+    monkeypatch.setattr(share, "WAIT_LIMIT", limit)
+    before = set(cache.DIR.glob("share-*"))
+    t = time.monotonic()
+    with caplog.at_level(logging.WARNING, logger="fencesweep"):
+        with share.shared_compile("fencesweep_test_plan:plan", {"how": how}):
+            from fencesweep_test_plan import run
+
+            assert run(1.5) == 3.0
+    assert time.monotonic() - t < 40
+    assert said in caplog.text
+    assert set(cache.DIR.glob("share-*")) == before and share._session is None

@@ -1,6 +1,7 @@
 """The integrator contract and Numba's set-up: no physics here.
 
-  jit.py       how kernel functions are compiled (one signature, IR for callers, templates)
+  jit.py       how kernel functions are compiled (one signature, IR for callers, templates),
+               and Numba's code generator as changed for those compiles only
   cache.py     where compiled entry points are cached; first-run notice and compile lock
   locator.py   Numba's cache locator for the package's functions
   share.py     a first run's compile on two cores (a helper process and a cache of kernel IR)

@@ -6,12 +6,13 @@ changed. Here every kernel function of the package is cached in one directory of
 
     <base>/fencesweep-<hash>/<sub-package path>/...
 
-with <hash> a digest of every kernel source (kernel/ and model/, where any compiled function
-or a constant it reads lives) and <base> Numba's NUMBA_CACHE_DIR when it is set, else the
-package's __pycache__ when it is writable, else the user's cache directory. An edited
-source gives a new directory: nothing stale is ever loaded, and nothing needs deleting (an old
-directory is left for another checkout that may still use it). kernel/locator.py's `KernelLocator`
-tells Numba so. This module itself does not import Numba: a command can ask whether the
+with <hash> a digest of the sources the kernels are compiled from (every module of kernel/, and
+the model modules with a compiled function, a constant one reads or a value kept in `solved`:
+MODEL_SOURCES; not the orchestration around them) and <base> Numba's NUMBA_CACHE_DIR when it is
+set, else the package's __pycache__ when it is writable, else the user's cache directory. An
+edited kernel source gives a new directory: nothing stale is ever loaded, and nothing needs
+deleting (an old directory is left for another checkout that may still use it).
+kernel/locator.py's `KernelLocator` tells Numba so. This module itself does not import Numba: a command can ask whether the
 kernels are compiled (`is_warm`) before it loads them.
 
 The same directory keeps
@@ -35,19 +36,34 @@ from pathlib import Path
 
 
 PKG = Path(__file__).resolve().parents[1]  # the package
-#: the sub-packages whose sources a compiled kernel can include
-KERNEL_PACKAGES = ("kernel", "model")
+#: the sub-package whose every module is a kernel source: the compile policy, the integrator, the
+#: event search, the step loop and the tolerances the kernels are built with
+KERNEL_PACKAGE = "kernel"
+#: the model modules the kernels are compiled from: those that define a compiled function, those
+#: whose constants a compiled function reads (Numba compiles a global's value into the code), and
+#: those that solve a value kept in `solved`. The rest of model/ (parameters, preparation of the
+#: parameter vector, the Python API) and every other sub-package are not: an edit there keeps the
+#: compiled kernels. tests/test_jit.py checks that every module that defines a compiled function,
+#: or that one of these imports from the package, is listed.
+MODEL_SOURCES = (
+    "model/calibrate.py", "model/contact.py", "model/drive.py", "model/layout.py", "model/results.py",
+    "model/scenes/contacts.py", "model/scenes/impact.py", "model/scenes/load.py", "model/scenes/stream.py",
+    "model/scenes/cycle/books.py", "model/scenes/cycle/events.py", "model/scenes/cycle/layout.py",
+    "model/scenes/cycle/peaks.py", "model/scenes/cycle/rhs.py", "model/scenes/cycle/run.py",
+    "model/scenes/cycle/slots.py",
+)
 
 
-def _kernel_sources() -> list[Path]:
-    return sorted(p for d in KERNEL_PACKAGES for p in (PKG / d).rglob("*.py"))
+def _kernel_sources(pkg: Path = PKG) -> list[Path]:
+    """The sources the kernel hash covers, in the package at `pkg`."""
+    return sorted([*(pkg / KERNEL_PACKAGE).rglob("*.py"), *(pkg / name for name in MODEL_SOURCES)])
 
 
-def kernel_hash() -> str:
+def kernel_hash(pkg: Path = PKG) -> str:
     """sha256 over the kernel sources (their paths and bytes)."""
     h = hashlib.sha256()
-    for path in _kernel_sources():
-        h.update(path.relative_to(PKG).as_posix().encode() + b"\0" + path.read_bytes() + b"\0")
+    for path in _kernel_sources(pkg):
+        h.update(path.relative_to(pkg).as_posix().encode() + b"\0" + path.read_bytes() + b"\0")
     return h.hexdigest()
 
 
@@ -112,9 +128,7 @@ def solved(name: str, key: tuple, solve):
 #: entry points known to be compiled in this process (checked on disk once per process)
 _warm: set = set()
 #: seconds a cold compile of each group of entry points takes on a 2-core machine, the cycle's
-#: with its helper process (kernel/share.py; benchmarks/startup.py, results/startup.md: a first
-#: cycle 9-10 s; another 2-core machine of the same kind took up to twice as long): what the
-#: first run announces
+#: with its helper process (kernel/share.py; results/startup.md): what the first run announces
 COMPILE_SECONDS = {"cycle": 10, "impact": 5}
 #: the groups a group's compile makes warm too (none now: the contact law's calibration, which
 #: every cycle's parameters need, no longer runs the impact scene; model/calibrate.py)

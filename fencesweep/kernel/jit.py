@@ -3,24 +3,21 @@ with one of:
 
   kernel()  a kernel function, called only from other compiled functions: numba.njit with
             * one signature: the function is compiled for the plain types of its arguments
-              (KernelDispatcher), never for the literal type of a constant argument. Numba
-              would otherwise compile f(x, N_CTRL), f(x, N_STATE) and f(x, 3) as three
-              functions, f(x, True) and f(x, flag) as two (measured: 1130 compilations of 79
-              functions for a first cycle before; tests/test_jit.py checks one per function);
-            * not cached itself: it is compiled into the entry points that call it, which are
-              (IR_ONLY below; kernel/cache.py keeps their cache in a directory of its own, named
-              by a hash of every kernel source);
+              (KernelDispatcher), never for the literal type of a constant argument, which
+              would make f(x, N_CTRL), f(x, N_STATE) and f(x, 3) three compilations
+              (tests/test_jit.py checks one per function);
+            * not cached itself, and compiled to LLVM IR only (KernelLibrary): it is compiled
+              into the entry points that call it, which are cached (kernel/cache.py keeps their
+              cache in a directory of its own, named by a hash of the kernel sources);
             * _nrt=False: without Numba's reference counting. A kernel function allocates
-              nothing: it works on arrays its caller made. With the counting on, Numba
-              increments and decrements (atomically) the reference of every array argument of
-              every call: measured with perf on the long_near cycle, 28% of the kernel's time.
-              Off, an allocation inside a kernel function does not compile, so "no allocation
-              in the loops" is checked by the compiler;
+              nothing: it works on arrays its caller made, and the counting (an atomic increment
+              and decrement of every array argument of every call) is a large part of a cycle's
+              time. Off, an allocation inside a kernel function does not compile, so "no
+              allocation in the loops" is checked by the compiler;
             * no_cpython_wrapper, no_cfunc_wrapper: without the wrappers that let Python (or C)
               call the function. Nothing but a kernel calls it, and the wrappers cost more to
-              compile than a small function itself (measured on this machine: 0.125 s against
-              0.039 s for a one-line function, of the ~60 kernel functions' cold compile).
-              `python_callable` gives a test or a Python caller its own callable copy;
+              compile than a small function itself. `python_callable` gives a test or a Python
+              caller its own callable copy;
             * KernelCompiler: Numba's nopython pipeline without the passes for what no kernel
               function uses (KernelCompiler's docstring).
   specialise(template, name, **bindings)  for the few generic functions that call a scene's
@@ -30,59 +27,131 @@ with one of:
             global name (RHS, STEP, ...); specialise compiles a copy of it with that name bound,
             once per scene, like a C++ template instance. Passing the function as an argument
             instead would make Numba inline the generic function at every call site to be able
-            to cache it (measured: 0.5-2.4 s of a cold compile per call site).
+            to cache it, a cold compile's cost per call site.
   entry()   an entry point, called from Python with one type signature (its caller passes
             float64 scalars and C-contiguous float64 / int64 arrays, so one compilation
             serves every call; tests/test_jit.py checks that every function has exactly one):
-            with reference counting, as entry points allocate a run's work arrays once.
+            with reference counting, as entry points allocate a run's work arrays once
+            (EntryDispatcher, cached in kernel/cache.py's directory).
   kernel(allocates=True)  an entry point's allocations (its work arrays): a kernel function
             with reference counting, compiled as IR for the entry point like the others (so a
             first run's helper can compile it too: kernel/share.py); Python calls its plain
             function (`.py_func`) for arrays of the same types.
-A first run compiles on two cores: kernel/share.py.
+
+How the package's compiles differ from Numba's is confined to the package's own code: a kernel
+function compiles into a KernelLibrary (LLVM IR only) and an entry point into an EntryLibrary,
+subclasses of Numba's code library that their own pipelines (KernelCompiler, EntryCompiler)
+make; Numba's classes are not changed. Numba's runtime and the helpers it compiles for an
+overload during the package's compile are Numba's own libraries, so a user's own njit function
+compiles to the same code in a process that has run the package's kernels as in one that has
+not (tests/test_compile_isolation.py). While the package compiles (`own_compile`), Numba's
+compiler lock is held and its LLVM-lock events are off. A first run compiles on two cores:
+kernel/share.py.
 """
 from __future__ import annotations
 
+import contextlib
 import functools
 import types as pytypes
 
 from fencesweep.kernel.numba_setup import numba  # first: Numba loaded without what it does not need
+import llvmlite.binding as llvm
 from numba import njit, types
 from numba.core import caching
 from numba.core import typed_passes as tp, untyped_passes as up
-from numba.core.codegen import CPUCodeLibrary, JITCPUCodegen
-from numba.core.compiler import CompilerBase
+from numba.core.codegen import JITCodeLibrary
+from numba.core.compiler import Compiler, CompilerBase
+from numba.core.compiler_lock import global_compiler_lock
 from numba.core.compiler_machinery import PassManager
 from numba.core.registry import CPUDispatcher
 
 from fencesweep.kernel import cache, share
 from fencesweep.kernel.locator import KernelLocator
 
-# ------------------------------------------------------------------ where the entry points are cached
-def _register() -> None:
-    impl = getattr(caching, "CacheImpl", None) or caching._CacheImpl
-    if KernelLocator not in impl._locator_classes:
-        impl._locator_classes.insert(0, KernelLocator)
-
-
-_register()
-
-
 #: True when NUMBA_DISABLE_JIT=1: the decorators return the plain Python functions
 JIT_DISABLED = bool(numba.config.DISABLE_JIT)
 
 
 _KERNEL = dict(nopython=True, _nrt=False, no_cpython_wrapper=True, no_cfunc_wrapper=True)
+#: an entry point's options: numba.njit's (nopython, boundscheck as njit leaves it) with
+#: reference counting, no C callback wrapper (nothing calls it from C), and not inlined
+_ENTRY = dict(nopython=True, boundscheck=None, _nrt=True, no_cfunc_wrapper=True, forceinline=False)
 
 
-#: kernel functions being compiled, innermost last (KernelDispatcher.compile)
-_COMPILING: list = []
+# ------------------------------------------------------------------ the package's code libraries
+def _optimize_functions_once(library, ll_module) -> None:
+    """CPUCodeLibrary._optimize_functions with one function pass manager for the module: Numba
+    builds a new pass builder and pass manager for every function of every module it adds
+    (declarations included), ~1000 of them for a first cycle."""
+    ll_module.data_layout = library._codegen._data_layout
+    fpm, pb = library._codegen._function_pass_manager()
+    for func in ll_module.functions:
+        if not func.is_declaration:
+            fpm.run(func, pb)
 
 
-class KernelCompiler(CompilerBase):
+class _NoEnvironment:
+    """The code generator as a kernel function's library shows it: setting a function's
+    environment does nothing, as no machine code of the library holds one (KernelLibrary)."""
+
+    def __init__(self, codegen):
+        self._codegen = codegen
+
+    def set_env(self, env_name, env) -> None:
+        pass
+
+    def __getattr__(self, name):
+        return getattr(self._codegen, name)
+
+
+class KernelLibrary(JITCodeLibrary):
+    """A kernel function's own code library: LLVM IR that its callers link and
+    optimize with their own code (Numba links every callee's IR into its caller's module). The
+    library is not optimized as a module nor turned into machine code, which only an entry
+    point's is: that work would be most of a cold compile's LLVM time, all of it redone in every
+    caller. Nothing runs a kernel function's own machine code: only entry points are called from
+    Python, and only they are cached. Numba's own libraries (its runtime, the helpers it compiles
+    for an overload), made during the same compile, are Numba's and compiled as Numba compiles
+    them: a later compile of a user's function links the same code as without fencesweep."""
+
+    _optimize_functions = _optimize_functions_once
+
+    def _optimize_final_module(self) -> None:
+        pass
+
+    def _finalize_final_module(self) -> None:
+        self._finalize_dynamic_globals()
+        self._verify_declare_only_symbols()
+        self._finalized = True
+
+    @property
+    def codegen(self):
+        return _NoEnvironment(self._codegen)
+
+
+class EntryLibrary(JITCodeLibrary):
+    """An entry point's own code library: Numba's, with one function pass manager per module."""
+
+    _optimize_functions = _optimize_functions_once
+
+
+class _OwnLibrary:
+    """A compiler pipeline (mixin) whose function gets a library of class `library_class`, made
+    as Numba's lowering makes one (named by the function, object code kept for its cache)."""
+
+    library_class = JITCodeLibrary
+
+    def compile_extra(self, func):
+        if self.state.library is None:
+            self.state.library = self.library_class(self.state.targetctx.codegen(), func.__qualname__)
+            self.state.library.enable_object_caching()
+        return super().compile_extra(func)
+
+
+class KernelCompiler(_OwnLibrary, CompilerBase):
     """Numba's nopython pipeline (numba.core.compiler.DefaultPassBuilder) for a kernel function,
-    without the passes for what no kernel function uses; each of those passes walks the whole
-    function, about 1 s of a first cycle's 15 s (results/startup.md):
+    into a KernelLibrary, without the passes for what no kernel function uses; each of those
+    passes walks the whole function, for ~140 functions in a first cycle:
       * with-contexts (objmode, parallel chunks), closures and functions made inside a kernel,
         Numba-level inlining (inline="always"; kernel(inline=True) asks LLVM instead),
         literally() and literal_unroll: not used by any kernel function;
@@ -93,6 +162,8 @@ class KernelCompiler(CompilerBase):
       * parfor diagnostics (no parallel=True).
     Kept: bytecode to IR, the constant rewrites (static getitem, constant raises), dead-branch
     pruning of constant conditions, typing, overload inlining, IR legalization, lowering."""
+
+    library_class = KernelLibrary
 
     def define_pipelines(self):
         pm = PassManager("fencesweep kernel")
@@ -113,92 +184,118 @@ class KernelCompiler(CompilerBase):
         return [pm]
 
 
+class EntryCompiler(_OwnLibrary, Compiler):
+    """Numba's default pipeline (numba.njit's) for an entry point, into an EntryLibrary."""
+
+    library_class = EntryLibrary
+
+
+@contextlib.contextmanager
+def kernel_libraries(codegen):
+    """Within the block, a library Numba makes or loads with `codegen` is a KernelLibrary: for a
+    kernel function loaded from a shared compile's bitcode (kernel/share.py), where Numba makes
+    the library itself. Holds Numba's compiler lock, as every library is made under it."""
+    with global_compiler_lock:
+        codegen._library_class = KernelLibrary  # the instance's, over its class's
+        try:
+            yield
+        finally:
+            del codegen._library_class
+
+
+# ------------------------------------------------------------------ while the package compiles
+def _llvm_lock():
+    """llvmlite's lock around every call into LLVM (None if llvmlite has none)."""
+    return getattr(getattr(llvm.ffi, "lib", None), "_lock", None)
+
+
+class _Own:
+    """The state of `own_compile`: how deep the package's compiles are nested, and the Numba
+    LLVM-lock callbacks the outermost one took off."""
+
+    depth = 0
+    events: list = []
+
+
+def _events_off() -> None:
+    lock = _llvm_lock()
+    if lock is not None:
+        with lock._lock:  # no thread between an acquire callback and its release
+            for pair in list(getattr(lock, "_cblist", ())):
+                if getattr(pair[0], "__module__", "") == "numba.core.base":
+                    lock.unregister(*pair)
+                    _Own.events.append(pair)
+
+
+def _events_on() -> None:
+    lock = _llvm_lock()
+    if lock is not None:
+        with lock._lock:
+            while _Own.events:
+                lock.register(*_Own.events.pop(0))
+
+
+@contextlib.contextmanager
+def own_compile():
+    """Around a compile (or cache load) of the package's: Numba's compiler lock held (a re-entrant
+    lock every Numba compile takes, so no other thread's compile runs meanwhile), and without
+    Numba's callbacks on llvmlite's lock. Those broadcast an event on every call into LLVM
+    (thousands in a cold compile) only to add up each compiled function's time in LLVM (its
+    metadata "timers"), which nothing here reads; the outermost block takes them off and puts
+    them back. Entered once per compile, never per call of a compiled function."""
+    with global_compiler_lock:
+        if _Own.depth == 0:
+            _events_off()
+        _Own.depth += 1
+        try:
+            yield
+        finally:
+            _Own.depth -= 1
+            if _Own.depth == 0:
+                _events_on()
+
+
+# ------------------------------------------------------------------ the dispatchers
 class KernelDispatcher(CPUDispatcher):
     """Numba's dispatcher for a kernel function (module docstring): a call from compiled code is
     typed with the arguments' plain types (types.unliteral), so a constant argument does not make
-    a new compilation; what it compiles is LLVM IR for its callers to link (IR_ONLY)."""
+    a new compilation; what it compiles is LLVM IR for its callers to link (KernelLibrary)."""
 
     def get_call_template(self, args, kws):
         return super().get_call_template(tuple(types.unliteral(a) for a in args),
                                          {k: types.unliteral(v) for k, v in kws.items()})
 
     def compile(self, sig):
-        _COMPILING.append(self)
-        try:
-            with share.turn(self):  # a cold compile on two cores: kernel/share.py
-                return super().compile(sig)
-        finally:
-            _COMPILING.pop()
+        with own_compile(), share.turn(self):  # a cold compile on two cores: kernel/share.py
+            return super().compile(sig)
 
     def __call__(self, *args, **kwargs):
         raise TypeError(f"{self.py_func.__qualname__} is a kernel function, called from compiled code only; "
                         f"fencesweep.kernel.jit.python_callable gives Python a callable copy")
 
 
-def _ir_only(method):
-    """A CPUCodeLibrary method that does nothing for a kernel function's own library (IR_ONLY)."""
+class _EntryCacheImpl(caching.CompileResultCacheImpl):
+    """Numba's cache of an entry point's compile result, kept where KernelLocator says (kernel/cache.py's
+    directory); Numba's own locators when it cannot (nowhere to write)."""
 
-    def wrapped(library):
-        if not _COMPILING:
-            method(library)
-
-    wrapped.__wrapped__ = method
-    return wrapped
+    _locator_classes = [KernelLocator, *caching.CompileResultCacheImpl._locator_classes]
 
 
-def _ir_only_finalize(method):
-    """CPUCodeLibrary._finalize_final_module that, for a kernel function's own library, only
-    checks its IR and marks it final: no machine code (IR_ONLY)."""
-
-    def wrapped(library):
-        if not _COMPILING:
-            return method(library)
-        library._finalize_dynamic_globals()
-        library._verify_declare_only_symbols()
-        library._finalized = True
-
-    wrapped.__wrapped__ = method
-    return wrapped
+class EntryCache(caching.FunctionCache):
+    _impl_class = _EntryCacheImpl
 
 
-#: IR_ONLY: a kernel function's own library is LLVM IR that its callers link and optimize with
-#: their own code (Numba links every callee's IR into its caller's module); the library is not
-#: optimized as a module nor turned into machine code, which only an entry point's is (measured:
-#: its module passes and its machine code were ~2/3 of a cold compile's LLVM time, all of it
-#: redone in every caller). Nothing runs a kernel function's own machine code: only entry points
-#: are called from Python, and only they are cached.
-IR_ONLY = not hasattr(CPUCodeLibrary._finalize_final_module, "__wrapped__")
-def _ir_only_env(method):
-    """JITCPUCodegen.set_env that leaves alone the environment of a kernel function's own library,
-    which has no machine code to hold it (IR_ONLY)."""
+class EntryDispatcher(CPUDispatcher):
+    """Numba's dispatcher for an entry point, as numba.njit(cache=True) makes it, with its compile
+    (or its load from the cache) under own_compile, into an EntryLibrary, and its cache in
+    kernel/cache.py's directory."""
 
-    def wrapped(codegen, env_name, env):
-        if not _COMPILING:
-            method(codegen, env_name, env)
+    def enable_caching(self):
+        self._cache = EntryCache(self.py_func)
 
-    wrapped.__wrapped__ = method
-    return wrapped
-
-
-def _optimize_functions(library, ll_module):
-    """CPUCodeLibrary._optimize_functions with one function pass manager for the module: Numba
-    builds a new pass builder and pass manager for every function of every module it adds
-    (declarations included), ~1000 of them for a first cycle; the passes run, and the code they
-    give, are the same (tables identical; measured: a first cycle ~1 s less of its ~15 s)."""
-    ll_module.data_layout = library._codegen._data_layout
-    fpm, pb = library._codegen._function_pass_manager()
-    for func in ll_module.functions:
-        if not func.is_declaration:
-            fpm.run(func, pb)
-
-
-if IR_ONLY:
-    if hasattr(numba.core.codegen, "create_pass_builder"):  # Numba on LLVM's new pass manager
-        _optimize_functions.__wrapped__ = CPUCodeLibrary._optimize_functions
-        CPUCodeLibrary._optimize_functions = _optimize_functions
-    CPUCodeLibrary._optimize_final_module = _ir_only(CPUCodeLibrary._optimize_final_module)
-    CPUCodeLibrary._finalize_final_module = _ir_only_finalize(CPUCodeLibrary._finalize_final_module)
-    JITCPUCodegen.set_env = _ir_only_env(JITCPUCodegen.set_env)
+    def compile(self, sig):
+        with own_compile():
+            return super().compile(sig)
 
 
 def kernel(inline=False, allocates=False):
@@ -214,8 +311,17 @@ def kernel(inline=False, allocates=False):
 
 
 def entry(**options):
-    """numba.njit for an entry point called from Python (module docstring)."""
-    return njit(cache=True, _nrt=True, no_cfunc_wrapper=True, forceinline=False, **options)
+    """The decorator of an entry point called from Python (module docstring)."""
+    if JIT_DISABLED:
+        return lambda fn: fn
+    targetoptions = dict(_ENTRY, **options)
+
+    def compiled(fn):
+        disp = EntryDispatcher(py_func=fn, locals={}, targetoptions=targetoptions, pipeline_class=EntryCompiler)
+        disp.enable_caching()
+        return disp
+
+    return compiled
 
 
 def specialise(template, name: str, **bindings):
@@ -238,4 +344,4 @@ def python_callable(fn):
     return njit(_nrt=False)(fn.py_func)
 
 
-__all__ = ["kernel", "entry", "specialise", "python_callable", "cache", "JIT_DISABLED"]
+__all__ = ["kernel", "entry", "specialise", "python_callable", "own_compile", "cache", "JIT_DISABLED"]

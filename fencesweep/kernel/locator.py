@@ -1,6 +1,8 @@
-"""Where Numba keeps a kernel's compiled code: `KernelLocator`, Numba's cache locator for the
-package's functions, rooted at kernel/cache.py's DIR (the entry points, kernel/jit.py) or, as a
-subclass, at a shared compile's directory (kernel functions, kernel/share.py)."""
+"""Where Numba keeps a kernel's compiled code: `KernelLocator`, a Numba cache locator for the
+package's functions, rooted at kernel/cache.py's DIR (the entry points: kernel/jit.py's
+EntryCache) or, as a subclass, at a shared compile's directory (kernel functions,
+kernel/share.py). Only those caches of the package use it: Numba's caching of other functions
+is left as it is."""
 from __future__ import annotations
 
 from pathlib import Path

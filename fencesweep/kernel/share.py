@@ -2,13 +2,15 @@
 one compiles the rest, and each loads what the other has finished.
 
 Numba compiles one process's functions one at a time (it holds a global lock), in the order its
-typing meets them: for a first cycle, ~140 kernel functions in ~10 s, then the entry point's
-module (~2.5 s, kernel/jit.py IR_ONLY). While a first run compiles (kernel/cache.py `compiling`):
+typing meets them: for a first cycle, ~140 kernel functions, then the entry point's module
+(kernel/jit.py KernelLibrary). While a first run compiles (kernel/cache.py `compiling`):
 
   * every kernel function this process or the helper compiles is kept on disk as LLVM bitcode
     (`KernelCache`: Numba's cache of a compiled function, with the IR a caller links instead of
-    machine code, which a kernel function does not have) in a directory of this compile, and a
-    kernel function found there is loaded instead of compiled;
+    machine code, which a kernel function does not have) in a directory of this compile, made
+    anew for it (tempfile.mkdtemp in kernel/cache.py's directory), and a kernel function found
+    there is loaded instead of compiled. An entry there is written by whichever process saves
+    it first (a file created exclusively); the other's copy, the same IR, is not saved;
   * the scene gives a plan (`Plan`, scenes/stream.py `compile_plan`): its entry point and a
     list of its large kernel functions, each with example arguments of the types they are
     called with, and a prelude: what a run does before it calls the entry point and the helper
@@ -18,33 +20,38 @@ module (~2.5 s, kernel/jit.py IR_ONLY). While a first run compiles (kernel/cache
     preparation, which then finds the prelude's results. The helper (`python -m
     fencesweep.kernel.share DIR PLAN`) compiles the list from the back, stops where this
     process has arrived, then runs the prelude for the run's parameters while this process
-    compiles the entry point alone (measured, 12 interleaved pairs of first cycles: 9.74 ->
-    9.19 s, the median, against the prelude first); this process waits for the prelude after
-    the entry point if the helper is still at it. A plan function is claimed by whichever
-    process starts it first (a file created exclusively); one that reaches a function the
-    other has claimed waits for it (this process, while the helper runs) or compiles it too
-    (the helper);
+    compiles the entry point alone (the entry point's compile is the serial part: the helper
+    has nothing of the plan left to do then). This process waits for the prelude after the
+    entry point if the helper is still at it, so that the two never compile one entry point
+    of the cache at once. A plan function is claimed by whichever process starts it first (a
+    file created exclusively); one that reaches a function the other has claimed waits for it
+    (this process, while the helper runs) or compiles it too (the helper);
+  * every wait ends after WAIT_LIMIT: the helper is then taken to be stuck and stopped, and this
+    process compiles the rest itself;
   * at the end the helper is stopped and the directory removed: only the entry points stay
-    cached (kernel/cache.py).
+    cached (kernel/cache.py). What the helper wrote on stderr (a traceback), its exit status
+    if it failed, and a wait that timed out are logged (logging.getLogger("fencesweep")).
 
 The helper changes the time only: what this process links is the same LLVM IR (bitcode keeps
 it exactly), and without the helper (it fails to start, dies, or FENCESWEEP_COMPILE_HELPER=0)
 this process compiles everything itself (tests/test_jit.py compares the results of both).
-Measured on a 2-core machine, side by side (benchmarks/startup.py, results/startup.md): a
-first cycle 12.9-14.8 s alone, 9.1-10.9 s with the helper. A process killed outright (SIGKILL)
-leaves its directory behind (share-PID in the cache directory, a few MB); its helper finishes
-the plan and exits.
+A process killed outright (SIGKILL) leaves its directory behind (share-* in the cache
+directory, a few MB); its helper finishes the plan and exits.
 """
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import importlib
 import json
+import logging
 import os
 import shutil
 import subprocess
 import sys
+import tempfile
 import time
+import traceback
 from pathlib import Path
 from typing import Callable, NamedTuple
 
@@ -60,6 +67,13 @@ from fencesweep.resources import usable_cores
 HELPER_ENV = "FENCESWEEP_COMPILE_HELPER"
 #: how often a process waiting for the other's function looks for it [s]
 POLL = 0.005
+#: the longest this process waits for the helper, for a plan function or the prelude [s]: each
+#: takes seconds, so a helper still at one after this long is stuck (or the machine is swamped)
+WAIT_LIMIT = 120.0
+#: the most of the helper's stderr that is logged [characters]
+LOG_TAIL = 4000
+
+log = logging.getLogger("fencesweep")
 
 
 class Plan(NamedTuple):
@@ -82,6 +96,30 @@ class _Session:
         self.roots = {key(d) for d, _ in plan.kernels}
         #: the kernel functions given a KernelCache (turn): given none again at the end
         self.cached: list = []
+        self.stopped = False
+
+    def helper_running(self) -> bool:
+        return self.helper is not None and self.helper.poll() is None
+
+    def stop_helper(self, why: str | None = None) -> None:
+        """Stop the helper (if it still runs) and log what went wrong: `why`, an exit status
+        other than 0, or anything it wrote on stderr."""
+        if self.helper is None or self.stopped:
+            return
+        self.stopped = True
+        status = self.helper.poll()
+        if status is None:
+            self.helper.kill()
+        self.helper.wait()
+        if why is None and status not in (None, 0):
+            why = f"exited with status {status}"
+        try:
+            said = (self.where / "helper.log").read_text(errors="replace").strip()
+        except OSError:
+            said = ""
+        if why is not None or said:
+            log.warning("fencesweep: the compile helper %s%s", why or "wrote on stderr",
+                        f":\n{said[-LOG_TAIL:]}" if said else "")
 
 
 _session: _Session | None = None
@@ -103,6 +141,16 @@ def signature(args: tuple) -> tuple:
     return tuple(typeof(a) for a in args)
 
 
+def _exclusive(path: Path) -> bool:
+    """Create `path` if no process has: True for the one process that did (False, too, when it
+    cannot be made: what it guards is then not done, which only costs time)."""
+    try:
+        os.close(os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY))
+    except OSError:
+        return False
+    return True
+
+
 # ------------------------------------------------------------------ the bitcode cache
 class _Locator(KernelLocator):
     """Numba's cache locator for kernel functions during a shared compile: the session's directory."""
@@ -113,8 +161,9 @@ class _Locator(KernelLocator):
 
 
 class _BitcodeImpl(caching.CompileResultCacheImpl):
-    """Numba's cache of a compile result with the library as LLVM bitcode (kernel/jit.py IR_ONLY:
-    a kernel function's library has IR and no machine code) and no type annotation text."""
+    """Numba's cache of a compile result with the library as LLVM bitcode (a kernel function's
+    library has IR and no machine code: kernel/jit.py KernelLibrary) and no type annotation
+    text; loaded into a KernelLibrary again."""
 
     _locator_classes = [_Locator]
 
@@ -125,11 +174,28 @@ class _BitcodeImpl(caching.CompileResultCacheImpl):
                 cres.objectmode, cres.lifted, None, cres.reload_init,
                 tuple(cres._find_referenced_environments()))
 
+    def rebuild(self, target_context, payload):
+        from fencesweep.kernel.jit import kernel_libraries  # jit imports this module
+
+        with kernel_libraries(target_context.codegen()):
+            return super().rebuild(target_context, payload)
+
 
 class KernelCache(caching.FunctionCache):
     """The cache of one kernel function during a shared compile (module docstring)."""
 
     _impl_class = _BitcodeImpl
+
+    def __init__(self, py_func):
+        super().__init__(py_func)
+        code = py_func.__code__
+        self._who = f"{py_func.__module__}.{py_func.__qualname__}:{code.co_firstlineno}"
+
+    def save_overload(self, sig, data):
+        """Saved by the first process to get here only: both compile the same IR."""
+        entry = hashlib.sha256(f"{self._who}{sig}".encode()).hexdigest()[:32]
+        if _session is not None and _exclusive(_session.where / "entries" / entry):
+            super().save_overload(sig, data)
 
 
 # ------------------------------------------------------------------ claims
@@ -163,8 +229,15 @@ def _done(k: str) -> Path:
 PRELUDE = "prelude"
 
 
-def _helper_running() -> bool:
-    return _session.helper is not None and _session.helper.poll() is None
+def _wait_for(k: str) -> None:
+    """Wait until the helper has finished k (a plan function, or PRELUDE), while it runs, for at
+    most WAIT_LIMIT; then the helper is stopped (module docstring)."""
+    deadline = time.monotonic() + WAIT_LIMIT
+    while not _done(k).exists() and _session.helper_running():
+        if time.monotonic() > deadline:
+            _session.stop_helper(f"had not finished {k} after {WAIT_LIMIT:g} s and was stopped")
+            return
+        time.sleep(POLL)
 
 
 @contextlib.contextmanager
@@ -181,8 +254,7 @@ def turn(disp):
             _session.cached.append(disp)
     k = key(disp)
     if k in _session.roots and not _claim(k):
-        while _session.helper is not None and not _done(k).exists() and _helper_running():
-            time.sleep(POLL)
+        _wait_for(k)
     try:
         yield
     finally:
@@ -195,6 +267,26 @@ def _helper_enabled() -> bool:
     return os.environ.get(HELPER_ENV, "1") != "0" and usable_cores() > 1 and not numba.config.DISABLE_JIT
 
 
+def _start(plan: str, steps: Plan, vals: dict | None) -> _Session | None:
+    """A session in a new directory, with the helper started on it; None (logged) if it cannot be."""
+    where = None
+    try:
+        cache.DIR.mkdir(parents=True, exist_ok=True)
+        where = Path(tempfile.mkdtemp(prefix="share-", dir=cache.DIR))
+        (where / "entries").mkdir()
+        with contextlib.suppress(TypeError, ValueError):  # parameters JSON cannot hold: no prelude
+            (where / "vals.json").write_text(json.dumps(vals))
+        with open(where / "helper.log", "wb") as stderr:
+            helper = subprocess.Popen([sys.executable, "-m", "fencesweep.kernel.share", str(where), plan],
+                                      stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=stderr)
+    except OSError as exc:
+        log.warning("fencesweep: no compile helper (%s); this process compiles alone", exc)
+        if where is not None:
+            shutil.rmtree(where, ignore_errors=True)
+        return None
+    return _Session(where, steps, helper)
+
+
 @contextlib.contextmanager
 def shared_compile(plan: str | None, vals: dict | None = None):
     """Around a cold compile in this process of a run on the parameters `vals`: start the helper
@@ -205,19 +297,8 @@ def shared_compile(plan: str | None, vals: dict | None = None):
     if plan is None or not _helper_enabled() or _session is not None:
         yield
         return
-    where = cache.DIR / f"share-{os.getpid()}"
     steps = load_plan(plan)
-    helper = None
-    try:
-        where.mkdir(parents=True, exist_ok=True)
-        with contextlib.suppress(TypeError, ValueError):  # parameters JSON cannot hold: no prelude
-            (where / "vals.json").write_text(json.dumps(vals))
-        helper = subprocess.Popen([sys.executable, "-m", "fencesweep.kernel.share", str(where), plan],
-                                  stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                                  stderr=subprocess.DEVNULL)
-        _session = _Session(where, steps, helper)
-    except OSError:  # no directory, no process: this process compiles alone
-        _session = None
+    _session = _start(plan, steps, vals)
     try:
         if _session is not None:
             for disp, args in steps.kernels:  # from the front, up to where the helper has come
@@ -226,17 +307,15 @@ def shared_compile(plan: str | None, vals: dict | None = None):
                 disp.compile(signature(args))
             entry, args = steps.entry
             entry.compile(signature(args))
-            while not _done(PRELUDE).exists() and _helper_running():
-                time.sleep(POLL)  # the run's preparation needs its results: waiting beats doing it again
+            _wait_for(PRELUDE)  # the run's preparation needs its results: waiting beats doing it again
         yield
     finally:
-        for disp in _session.cached if _session is not None else ():
-            disp._cache = caching.NullCache()  # the directory goes: nothing more is kept there
-        _session = None
-        if helper is not None:
-            helper.kill()
-            helper.wait()
-        shutil.rmtree(where, ignore_errors=True)
+        session, _session = _session, None
+        if session is not None:
+            for disp in session.cached:
+                disp._cache = caching.NullCache()  # the directory goes: nothing more is kept there
+            session.stop_helper()
+            shutil.rmtree(session.where, ignore_errors=True)
 
 
 def helper_main(where: str, plan: str) -> None:
@@ -252,9 +331,12 @@ def helper_main(where: str, plan: str) -> None:
         if _claimed_by_other(key(disp)):
             break  # the other process has come this far
         disp.compile(signature(args))
+    vals = _session.where / "vals.json"  # absent: parameters JSON cannot hold, no prelude
     try:
-        with contextlib.suppress(Exception):  # the prelude only saves time: the run does it again if it failed
-            steps.prelude(json.loads((_session.where / "vals.json").read_text()))
+        if vals.exists():
+            steps.prelude(json.loads(vals.read_text()))
+    except Exception:  # the prelude only saves time: the run does it again; the traceback is logged there
+        traceback.print_exc()
     finally:
         with contextlib.suppress(OSError):
             _done(PRELUDE).touch()
