@@ -1,32 +1,24 @@
 """Every step size and tolerance of the engine, in one place, each with its reason.
 
 The physics has no tunable constants: these settle only how finely the equations of
-docs/model.md are solved. setup.py turns them into the kernel's parameter vector (layout.py);
-the kernels read them from there. `benchmarks/work_precision.py` measures what they buy.
+docs/model.md are solved. model/prepare.py puts them into the kernel's parameter vector
+(model/layout.py); the kernels read them from there. `benchmarks/work_precision.py` measures what they buy.
 """
 from __future__ import annotations
 
 #: Integrators (params `integrator`): the default embedded pair with error control, and the
 #: fixed-step classical RK4 of the first engine, kept as the baseline row of the benchmarks.
-#: Why not a higher-order pair: DOP853 (Hairer's coefficients and error norm, its 7th-order
-#: dense output formed only in the steps that need it) was built and measured beside DOPRI5
-#: and removed again (issue 13). On the b2k2 sample it took 169.9 steps a cycle against 318.5
-#: at the same TOL but 12 right-hand sides a step against ~6.5: 0.54 against 0.30 ms a cycle.
-#: It also needed TOL 1e-8 to keep the validation set within 1e-4 (4 scenes over at 1e-6, up
-#: to 4.6e-4; 1 at 1e-7); there it took 0.80 ms a cycle (DOPRI5 at 1e-8: 0.60 ms).
+#: Not a higher-order pair: DOP853 took fewer steps but more right-hand sides a cycle, and
+#: needed a tighter tolerance to keep the validation set within 1e-4, so it was slower.
 INTEGRATORS = ("dopri5", "rk4")
 
 #: Local error tolerance at step_factor = 1. Every step keeps the difference of the 5th- and
 #: 4th-order solutions below TOL relative to the state (rtol) and to the scene's scales (atol,
 #: model/scenes/cycle/books.py error_scales: each component's allowed error moves a point of the scene by
 #: TOL x the fence length, or TOL x the fastest drive-or-belt speed for velocities). Chosen
-#: as the loosest power of ten at which the widened validation set
-#: (benchmarks/validation_scenes.yaml, tests/test_validation.py) stays within 1e-4 of the
-#: reference in peak_force, deflection_max and t_exit: measured at 1e-8, 1e-7, 1e-6 and 1e-5,
-#: the scenes missed are none at 1e-8, the same one at 1e-7 and 1e-6 (graze_tip_clip, since
-#: met by APPROACH_TOL below) and 18 at 1e-5 (a load resting on a free fence chatters: 3 impacts,
-#: 1e-3 errors; results/tolerance_scan.md).
-#: The named cases are then ~1e-6 from the reference (benchmarks/tolerance_scan.py).
+#: as the loosest power of ten at which the validation set (tests/test_validation.py) stays
+#: within 1e-4 of the reference in peak_force, deflection_max and t_exit
+#: (benchmarks/tolerance_scan.py, results/tolerance_scan.md).
 TOL = 1e-6
 
 #: Tolerance of the one-pulse scenes (`impact`, `freefall`, and the free-fall force that every
@@ -63,24 +55,21 @@ EVENT_TOL = 1e-12
 
 #: A contact released inside a step (a PUSH slot that stops pushing) is located on the method's
 #: own flow, not on the step's dense output alone: the step's later stages lie past the kink
-#: of max(N, 0) (docs/model.md §4), and its dense output at the release is off by several atol in
-#: the velocities (mid_tc0.6_rigid: 5-8 atol, a 2.4e-4 rad/s error in omega that became a
-#: 6.7e-5 error in t_exit, issue 13). cycle.release_state steps to the release, located anew on
-#: the dense output of each step that passes it, until one passes it by at most RELEASE_TOL
-#: [s, relative to max(1, t)], and takes the state there from that step's dense output. Its
-#: error shrinks in proportion to the overshoot (measured: the release located ~2% of the
-#: overshoot early, at 3e-3 and at 2.5e-4 of the step), so 1e-6 s against the 1.6e-3 s of that
-#: step leaves ~5e-3 atol, and the release's time is off by ~2e-8 s. A try aims RELEASE_MARGIN
-#: of the way from the located release to the last step that passed it, so that it passes it
-#: again by ~10x less. At most RELEASE_TRIES tries (measured: 2-4 a release on the named cases).
+#: of max(N, 0) (docs/model.md §4), which puts its dense output's velocities at the release
+#: several atol off. events.release_state steps to the release, located anew on the dense
+#: output of each step that passes it, until one passes it by at most RELEASE_TOL [s, relative
+#: to max(1, t)], and takes the state there from that step's dense output: its error shrinks in
+#: proportion to the overshoot, and 1e-6 s leaves a small fraction of atol. A try aims
+#: RELEASE_MARGIN of the way from the located release to the last step that passed it, so that
+#: it passes it again by ~10x less; RELEASE_TRIES bounds the tries (a release takes a few).
 RELEASE_TOL = 1e-6
 RELEASE_MARGIN = 0.1
 RELEASE_TRIES = 4
 
 #: First step after a contact onset, as a fraction of the undamped pulse time of the load at the
 #: fastest closing speed (contact.pulse_time): the damped law's force grows like (t - t_A)^(1/4)
-#: from the onset, which the error estimate of a long first step misjudges (a 10 us tip clip
-#: came out 4e-3 too strong), and a graze lasts far less than a pulse; from this start the
+#: from the onset, which the error estimate of a long first step misjudges (a short tip clip
+#: came out too strong), and a graze lasts far less than a pulse; from this start the
 #: controller grows the steps by up to 10x a step, so the start costs ~4 steps per onset.
 ONSET_STEP = 1e-6
 
@@ -94,41 +83,34 @@ CONTACT_HYSTERESIS = 1e-10
 
 #: A touch (docs/model.md (11.10)): the load-fence force above TOUCH_FORCE x the free-fall force
 #: F_ff (~6 uN for the defaults); touches give n_impacts and contact_time (t_A dated from the
-#: force's first onset, t_B where the last touch falls to the floor). Without
-#: a floor a load resting on the fence at ~1e-14 N (a free fence at a low belt speed: rounding
-#: noise of a contact at zero depth) "touched" until a step happened to clip it, and its
-#: contact_time ranged from 0.03 to 2.36 s with the step. The validation's rail touches use the
-#: same fraction. (t_A dated from where the force passes the floor instead, a corner squeezed at
-#: the pivot, whose force grows from 0 over ~10 ms, began its touch anywhere from 5 to 11 ms with
-#: the step: 3,186 rows of the envelope study 1e-3 off in contact_time; dated from the onset of
-#: the force episode in which the floor is passed, 297 rows: the squeeze lets go and pushes again
-#: at ~1e-8 N within some 7 ms steps and not within shorter ones.)
+#: force's first onset, t_B where the last touch falls to the floor). Without a floor a load
+#: resting on the fence at rounding-noise force (a contact at zero depth) "touched" until a step
+#: happened to clip it, so its contact_time depended on the step. The validation's rail touches
+#: use the same fraction. t_A is dated from the onset of the force episode in which the floor is
+#: passed: dated from where the force passes the floor, a touch whose force grows slowly from 0
+#: (a corner squeezed at the pivot) began where the steps happened to fall.
 TOUCH_FORCE = 1e-9
 
 #: A gap that opens at both ends of a step can still dip to contact inside it (a fence tip that
-#: skims along an edge of the load: after a release at a rigid fence, a 111 ms step carried the
-#: tip 2.5 mm into the load and out again, a contact of 89 N missed at step_factor 0.398 and
-#: seen at every other setting). Its minimum is searched on the dense output when the cubic
-#: through the gap's end values and rates dips below DIP_MARGIN of the smaller end gap
-#: (events.dip_candidate; that cubic predicted -5e-5 m there against the end gaps' 9e-4 m).
+#: skims along an edge of the load within one long step). Its minimum is searched on the dense
+#: output when the cubic through the gap's end values and rates dips below DIP_MARGIN of the
+#: smaller end gap (events.dip_candidate): a margin, as the cubic only estimates the dip.
 DIP_MARGIN = 0.5
 #: ... and the step after a long one is cut to the time in which a gap apart at its end would
-#: close at its end rate and its acceleration over the step (run.approach_step): the cubic did
-#: not see that tip at step_factor 0.5 (a 139 ms step whose end, past the load's exit, had the
-#: gap opening at 2.3 m/s). Not below APPROACH_FLOOR x the largest step, so that a gap that
-#: stays at ~0 after a release does not make the steps vanish.
+#: close at its end rate and its acceleration over the step (run.approach_step), for a dip that
+#: the cubic does not see (a gap opening fast at the step's end). Not below APPROACH_FLOOR x the
+#: largest step, so that a gap that stays at ~0 after a release does not make the steps vanish.
 APPROACH_FLOOR = 0.01
 
 #: Peaks of the tracked quantities (forces, deflection, alpha) are refined by Brent's search
-#: (integrate.peak_max) on the dense output of the two steps around a local maximum of the samples, to
+#: (search.peak_max) on the dense output of the two steps around a local maximum of the samples, to
 #: this width in units of the window (value error ~ (width)^2: far below 1e-6 relative), and
 #: only for local maxima within PEAK_CANDIDATE of the running maximum.
 PEAK_TOL = 1e-6
 PEAK_CANDIDATE = 0.999
 #: A force's interior maximum can lie far above both ends of a step: two corners striking at
-#: once (a face landing flush on the fence) make a pulse of ~1 ms whose top fell between two
-#: samples at 97 % of it, the peak 2.9 % low, 1,525 rows of the envelope study over 1e-3.
-#: So a step is judged when the force may reach PEAK_CANDIDATE of the running maximum inside
+#: once (a face landing flush on the fence) make a short pulse whose top can fall between two
+#: samples. So a step is judged when the force may reach PEAK_CANDIDATE of the running maximum inside
 #: it (peaks.reach): the larger end value plus PEAK_REACH times the larger of the step's rise
 #: and the rise at the previous step's rate (a concave top stays under the tangent at the
 #: start, whose slope the previous secant exceeds; 2 covers a rise still convex there). After
@@ -157,34 +139,21 @@ H_MIN = 1e-14
 
 #: The step's tolerance is scaled (atol and rtol together; cycle/run.py set_tolerance):
 #:   * by APPROACH_TOL while the load is on the belt and touches nothing: the positions at which
-#:     a contact begins decide how deep it goes, and a graze (a touch of ~1e-5 m) is as deep as
-#:     the fence and the load are accurate. Its force (~D^1.5, D^0.25 D', docs/model.md §4) is
-#:     ill-conditioned in the penetration D: graze_tip_clip (a 2e-5 m tip clip at 2.9 m/s, its
-#:     peak 3647 N) was 1.2e-3 off at TOL (the position error ~1e-6 m of the fence's angle
-#:     accumulated over the approach), 2.8e-5 with the approach held 30x tighter. The approach
-#:     is ~4% of a cycle's steps: on the b2k2 sample 318.5 -> 327.2 steps a cycle (+2.7%).
+#:     a contact begins decide how deep it goes, and a graze (a touch of ~1e-5 m) is only as deep
+#:     as the fence and the load are accurate; its force (~D^1.5, D^0.25 D', docs/model.md §4) is
+#:     ill-conditioned in the penetration D. The approach is a small share of a cycle's steps.
 #:     The same holds while the load lets go of the fence slowly: its deepest fence contact
-#:     less than LIGHT_DEPTH position tolerances (TOL l) deep and opening. There the force (~3 N
-#:     at 8e-5 m) is a small difference of its elastic and damping parts, and a position error of
-#:     TOL l moves its return to zero by ms: long_near at B2 110, K2 175 released the fence
-#:     1.0e-3 s late (contact_time 1.4e-3 off); so, 4.8e-5 off. On 400 random scenes of the main
-#:     job, the largest contact_time difference against step_factor 10^(-1/5) (a sweep's
-#:     verification) fell from 1.25e-3 to 6.2e-4 (now the tighter run's own error: that scene is
-#:     3e-5 off at the default), at 327.2 -> 328.1 steps a cycle on the b2k2 sample (+0.3%).
-#:     Not while the contact closes: tightening the onsets too (light contacts of any rate)
-#:     moved mid_tc0.6_rigid's t_exit from 1.6e-6 to 3.5e-5 off the reference.
-#:   * by FREE_TOL throughout for a free fence (drive = free): nothing pulls it back to its
-#:     drive, so an error in its rate integrates into its angle until t_c (a coast of up to
-#:     ~0.8 s after the load left), and an impact on it passes the load's errors into that rate.
-#:     Measured on 213 random free fences with the harmonic profile, t_c 1.0-1.2 s: the largest
-#:     deflection_max error against step_factor 0.25 was 5.5e-4 at TOL, 6.4e-6 at TOL / 16.
-#:     No scene of the main job has a free fence.
+#:     less than LIGHT_DEPTH position tolerances (TOL l) deep and opening. There the force is a
+#:     small difference of its elastic and damping parts, and a position error of TOL l moves
+#:     its return to zero by milliseconds. Not while the contact closes: tightening the onsets
+#:     too (light contacts of any rate) moved other results further from the reference.
 #:     The depth alone misses a release whose damping part cancels a deeper contact's elastic
-#:     part: a heavily damped fence (B2 400, K2 150) let a 0.7 m load go over 6 ms at ~1e-4 m
-#:     depth, its force under 1 N, and a 6 ms step put the release 0.53 ms late (contact_time
-#:     1.2e-3 off). So a contact letting go counts as light too while the fence's force is below
-#:     LIGHT_FORCE x F_ff (~6 N for the defaults): a release after an impact passes through it in
-#:     a step or two.
+#:     part (a heavily damped fence letting a load go slowly); so a contact letting go counts as
+#:     light too while the fence's force is below LIGHT_FORCE x F_ff (~6 N for the defaults): a
+#:     release after an impact passes through it in a step or two.
+#:   * by FREE_TOL throughout for a free fence (drive = free): nothing pulls it back to its
+#:     drive, so an error in its rate integrates into its angle until t_c (a coast after the
+#:     load left), and an impact on it passes the load's errors into that rate.
 APPROACH_TOL = 1.0 / 30.0
 LIGHT_DEPTH = 100.0
 LIGHT_FORCE = 1e-3
