@@ -92,3 +92,17 @@ def test_the_cli_shows_the_logger_on_stderr_and_restores_it(capsys):
         logging.getLogger("fencesweep.study").warning("warning: shown")
     assert capsys.readouterr().err == "a note\nwarning: shown\n"
     assert (log.level, log.propagate, list(log.handlers)) == before
+
+
+def test_the_compile_notice_is_a_warning_of_the_logger_once(monkeypatch, tmp_path, caplog):
+    from fencesweep.kernel import cache
+
+    monkeypatch.setattr(cache, "DIR", tmp_path)
+    monkeypatch.setattr(cache, "_warm", set())
+    with caplog.at_level(logging.INFO, logger="fencesweep"):
+        with cache.compiling("nothing"):
+            pass
+        with cache.compiling("nothing"):  # compiled now: nothing to say
+            pass
+    assert [(r.name, r.levelname) for r in caplog.records] == [("fencesweep", "WARNING")]
+    assert "compiling the nothing kernels (first run on this machine" in caplog.records[0].getMessage()

@@ -27,10 +27,10 @@ The same directory keeps
 from __future__ import annotations
 
 import contextlib
+import logging
 import hashlib
 import json
 import os
-import sys
 import tempfile
 from pathlib import Path
 
@@ -129,7 +129,7 @@ def solved(name: str, key: tuple, solve):
 _warm: set = set()
 #: seconds a cold compile of each group of entry points takes on a 2-core machine, the cycle's
 #: with its helper process (kernel/share.py; results/startup.md): what the first run announces
-COMPILE_SECONDS = {"cycle": 10, "impact": 5}
+COMPILE_SECONDS = {"cycle": 12, "impact": 5}
 #: the groups a group's compile makes warm too (none now: the contact law's calibration, which
 #: every cycle's parameters need, no longer runs the impact scene; model/calibrate.py)
 IMPLIES = {"cycle": ("cycle",), "impact": ("impact",)}
@@ -156,13 +156,14 @@ def mark_warm(name: str) -> None:
 @contextlib.contextmanager
 def compiling(name: str, say=None, cold=contextlib.nullcontext):
     """Around the first call of the entry points of `name` in a process: when they are not in
-    the cache yet, say so on stderr (or to `say`), and compile under a lock so that a process
+    the cache yet, say so (to `say`, by default a WARNING of the "fencesweep" logger: shown on
+    stderr unless a user routes or silences it), and compile under a lock so that a process
     started at the same time waits and then loads them, inside the context `cold()` (a helper
     process on the second core: kernel/share.py); when they are, nothing."""
     if is_warm(name):
         yield
         return
-    say = say or (lambda msg: print(msg, file=sys.stderr, flush=True))
+    say = say or logging.getLogger("fencesweep").warning
     lock = None
     with contextlib.suppress(ImportError, OSError):
         from filelock import FileLock
