@@ -1,7 +1,8 @@
 """The integrator contract and Numba's set-up: no physics here.
 
-  jit.py       how kernel functions are compiled (one signature, IR for callers, templates),
-               and Numba's code generator as changed for those compiles only
+  jit.py       how kernel functions are compiled (one signature, IR for callers, templates)
+  libraries.py the package's own code libraries (a kernel function's: IR only), so that Numba's
+               own classes stay as they are
   cache.py     where compiled entry points are cached; first-run notice and compile lock
   locator.py   Numba's cache locator for the package's functions
   share.py     a first run's compile on two cores (a helper process and a cache of kernel IR)

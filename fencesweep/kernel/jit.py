@@ -66,6 +66,7 @@ from numba.core.compiler_machinery import PassManager
 from numba.core.registry import CPUDispatcher
 
 from fencesweep.kernel import cache, share
+from fencesweep.kernel.libraries import EntryLibrary, KernelLibrary
 from fencesweep.kernel.locator import KernelLocator
 
 #: True when NUMBA_DISABLE_JIT=1: the decorators return the plain Python functions
@@ -76,63 +77,6 @@ _KERNEL = dict(nopython=True, _nrt=False, no_cpython_wrapper=True, no_cfunc_wrap
 #: an entry point's options: numba.njit's (nopython, boundscheck as njit leaves it) with
 #: reference counting, no C callback wrapper (nothing calls it from C), and not inlined
 _ENTRY = dict(nopython=True, boundscheck=None, _nrt=True, no_cfunc_wrapper=True, forceinline=False)
-
-
-# ------------------------------------------------------------------ the package's code libraries
-def _optimize_functions_once(library, ll_module) -> None:
-    """CPUCodeLibrary._optimize_functions with one function pass manager for the module: Numba
-    builds a new pass builder and pass manager for every function of every module it adds
-    (declarations included), ~1000 of them for a first cycle."""
-    ll_module.data_layout = library._codegen._data_layout
-    fpm, pb = library._codegen._function_pass_manager()
-    for func in ll_module.functions:
-        if not func.is_declaration:
-            fpm.run(func, pb)
-
-
-class _NoEnvironment:
-    """The code generator as a kernel function's library shows it: setting a function's
-    environment does nothing, as no machine code of the library holds one (KernelLibrary)."""
-
-    def __init__(self, codegen):
-        self._codegen = codegen
-
-    def set_env(self, env_name, env) -> None:
-        pass
-
-    def __getattr__(self, name):
-        return getattr(self._codegen, name)
-
-
-class KernelLibrary(JITCodeLibrary):
-    """A kernel function's own code library: LLVM IR that its callers link and
-    optimize with their own code (Numba links every callee's IR into its caller's module). The
-    library is not optimized as a module nor turned into machine code, which only an entry
-    point's is: that work would be most of a cold compile's LLVM time, all of it redone in every
-    caller. Nothing runs a kernel function's own machine code: only entry points are called from
-    Python, and only they are cached. Numba's own libraries (its runtime, the helpers it compiles
-    for an overload), made during the same compile, are Numba's and compiled as Numba compiles
-    them: a later compile of a user's function links the same code as without fencesweep."""
-
-    _optimize_functions = _optimize_functions_once
-
-    def _optimize_final_module(self) -> None:
-        pass
-
-    def _finalize_final_module(self) -> None:
-        self._finalize_dynamic_globals()
-        self._verify_declare_only_symbols()
-        self._finalized = True
-
-    @property
-    def codegen(self):
-        return _NoEnvironment(self._codegen)
-
-
-class EntryLibrary(JITCodeLibrary):
-    """An entry point's own code library: Numba's, with one function pass manager per module."""
-
-    _optimize_functions = _optimize_functions_once
 
 
 class _OwnLibrary:
@@ -188,19 +132,6 @@ class EntryCompiler(_OwnLibrary, Compiler):
     """Numba's default pipeline (numba.njit's) for an entry point, into an EntryLibrary."""
 
     library_class = EntryLibrary
-
-
-@contextlib.contextmanager
-def kernel_libraries(codegen):
-    """Within the block, a library Numba makes or loads with `codegen` is a KernelLibrary: for a
-    kernel function loaded from a shared compile's bitcode (kernel/share.py), where Numba makes
-    the library itself. Holds Numba's compiler lock, as every library is made under it."""
-    with global_compiler_lock:
-        codegen._library_class = KernelLibrary  # the instance's, over its class's
-        try:
-            yield
-        finally:
-            del codegen._library_class
 
 
 # ------------------------------------------------------------------ while the package compiles

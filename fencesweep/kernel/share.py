@@ -3,7 +3,7 @@ one compiles the rest, and each loads what the other has finished.
 
 Numba compiles one process's functions one at a time (it holds a global lock), in the order its
 typing meets them: for a first cycle, ~140 kernel functions, then the entry point's module
-(kernel/jit.py KernelLibrary). While a first run compiles (kernel/cache.py `compiling`):
+(kernel/libraries.py KernelLibrary). While a first run compiles (kernel/cache.py `compiling`):
 
   * every kernel function this process or the helper compiles is kept on disk as LLVM bitcode
     (`KernelCache`: Numba's cache of a compiled function, with the IR a caller links instead of
@@ -60,6 +60,7 @@ from numba import typeof
 from numba.core import caching
 
 from fencesweep.kernel import cache
+from fencesweep.kernel.libraries import kernel_libraries
 from fencesweep.kernel.locator import KernelLocator
 from fencesweep.resources import usable_cores
 
@@ -162,7 +163,7 @@ class _Locator(KernelLocator):
 
 class _BitcodeImpl(caching.CompileResultCacheImpl):
     """Numba's cache of a compile result with the library as LLVM bitcode (a kernel function's
-    library has IR and no machine code: kernel/jit.py KernelLibrary) and no type annotation
+    library has IR and no machine code: kernel/libraries.py KernelLibrary) and no type annotation
     text; loaded into a KernelLibrary again."""
 
     _locator_classes = [_Locator]
@@ -175,8 +176,6 @@ class _BitcodeImpl(caching.CompileResultCacheImpl):
                 tuple(cres._find_referenced_environments()))
 
     def rebuild(self, target_context, payload):
-        from fencesweep.kernel.jit import kernel_libraries  # jit imports this module
-
         with kernel_libraries(target_context.codegen()):
             return super().rebuild(target_context, payload)
 
