@@ -11,17 +11,17 @@ import argparse
 import atexit
 import contextlib
 import gc
-import logging
 import json
+import logging
 import math
 import sys
 import warnings
 from pathlib import Path
 
-from fencesweep.version import __version__
+from fencesweep.errors import MissingInput, MissingTable, UsageError, VerificationWarning, WriteError
 from fencesweep.model import params as P
 from fencesweep.study import api
-from fencesweep.errors import MissingInput, MissingTable, UsageError, VerificationWarning, WriteError
+from fencesweep.version import __version__
 
 __all__ = ["main", "build_parser", "UsageError"]
 

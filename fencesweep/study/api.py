@@ -28,18 +28,18 @@ from pathlib import Path
 from typing import Any, Callable
 
 from fencesweep.errors import SweepInterrupted, SweepWriteError, UsageError, WriteError
-from fencesweep.study.spec import envelope as E
 from fencesweep.study.design import points as PT
-from fencesweep.study.store import lock
-from fencesweep.study.sweep.progress import wanted as progress_wanted
-from fencesweep.study.sweep import output
+from fencesweep.study.spec import envelope as E
 from fencesweep.study.spec import file as specfile
+from fencesweep.study.spec import spec as S
+from fencesweep.study.store import lock
 from fencesweep.study.store import table as store
+from fencesweep.study.sweep import output
 from fencesweep.study.sweep import pipeline as sweep
 from fencesweep.study.sweep import verify as V
-from fencesweep.study.spec import spec as S
 from fencesweep.study.sweep.estimate import Estimate
 from fencesweep.study.sweep.estimate import estimate as _estimate
+from fencesweep.study.sweep.progress import wanted as progress_wanted
 
 __all__ = ["grid", "run_grid", "points", "estimate", "design", "sensitivity", "load_spec", "SweepInterrupted",
            "SweepWriteError"]

@@ -23,12 +23,11 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from fencesweep.study.adaptive import loads as AL
-from fencesweep.study.sweep import compute
-from fencesweep.study.sweep import runs
-from fencesweep.study.store import table as store
-from fencesweep.study.spec import design as DS
-from fencesweep.study.design import judge as J
 from fencesweep.study.adaptive.maps import Layout
+from fencesweep.study.design import judge as J
+from fencesweep.study.spec import design as DS
+from fencesweep.study.store import table as store
+from fencesweep.study.sweep import compute, runs
 
 CHUNK_CYCLES = 512  # planned cycles per chunk, at most (about a second of work)
 MIN_CHUNKS = 16  # chunks per level, at least, when it has that many elements

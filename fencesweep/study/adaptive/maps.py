@@ -23,8 +23,8 @@ import numpy as np
 
 from fencesweep.errors import UsageError
 from fencesweep.study.adaptive import refine as A
-from fencesweep.study.spec import design as DS
 from fencesweep.study.design import judge as J
+from fencesweep.study.spec import design as DS
 from fencesweep.study.spec import spec as S
 
 #: the verdict of a grid with cases: scraped, overload <= 1, deflection_max <= dalpha_perm

@@ -23,9 +23,9 @@ from pathlib import Path
 import numpy as np
 
 from fencesweep.study.adaptive import refine as A
+from fencesweep.study.adaptive.maps import Layout
 from fencesweep.study.design import judge as J
 from fencesweep.study.design import points as PT
-from fencesweep.study.adaptive.maps import Layout
 
 COUNTS = ("n_escaped", "worst_overload_load", "worst_deflection_max_load", "worst_residual_amplitude_load")
 

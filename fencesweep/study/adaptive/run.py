@@ -26,9 +26,9 @@ rules and VERSION: a changed rule never reuses a stale chunk. Orchestration only
 """
 from __future__ import annotations
 
-import logging
 import hashlib
 import json
+import logging
 import math
 import shutil
 import time
@@ -38,16 +38,15 @@ from typing import Callable
 
 import numpy as np
 
-from fencesweep.study.adaptive import refine as A
 from fencesweep.study.adaptive import loads as AL
 from fencesweep.study.adaptive import maps as AM
-from fencesweep.study.store import lock
-from fencesweep.study.sweep import output
-from fencesweep.study.sweep import runs
-from fencesweep.study.sweep import plan as PL
-from fencesweep.study.spec import spec as S
-from fencesweep.study.sweep import verify as V
+from fencesweep.study.adaptive import refine as A
 from fencesweep.study.adaptive.evaluate import Evaluator
+from fencesweep.study.spec import spec as S
+from fencesweep.study.store import lock
+from fencesweep.study.sweep import output, runs
+from fencesweep.study.sweep import plan as PL
+from fencesweep.study.sweep import verify as V
 from fencesweep.study.sweep.progress import bar as progress_bar
 
 VERSION = 2  # of the refinement and its rules; in the work directory's salt

@@ -28,12 +28,10 @@ from typing import Any, Callable
 
 import numpy as np
 
-from fencesweep.study.spec import envelope as E
-
-from fencesweep.study.spec import design as DS
-
-from fencesweep.study.design import judge as J
 from fencesweep.model import params as P
+from fencesweep.study.design import judge as J
+from fencesweep.study.spec import design as DS
+from fencesweep.study.spec import envelope as E
 from fencesweep.study.spec import spec as S
 from fencesweep.study.spec.design import DesignConfig
 from fencesweep.study.sweep.progress import bar as progress_bar

@@ -20,6 +20,7 @@ from fencesweep.study.design import points as PT
 from fencesweep.study.spec import envelope as E
 from fencesweep.study.spec import spec as S
 
+
 def _salib():
     try:
         from SALib.analyze import sobol as analyze
@@ -58,7 +59,6 @@ def run(spec, jobs: int | None = None, progress: bool = False, out: str | Path |
     import pyarrow as pa
 
     from fencesweep.study.store import table as store
-
     from fencesweep.study.sweep import pipeline as sweep
 
     cfg = spec.sensitivity

@@ -15,8 +15,8 @@ from typing import Callable, Iterator
 
 import numpy as np
 
-from fencesweep.study.sweep import plan as PL
 from fencesweep.study.store import table as store
+from fencesweep.study.sweep import plan as PL
 from fencesweep.study.sweep.chunks import ChunkTables, tables_of
 
 CHUNK_CACHE = 8  # chunks held in memory while assembling

@@ -28,10 +28,10 @@ import numpy as np
 
 from fencesweep.errors import UsageError
 from fencesweep.model import params as P
-from fencesweep.study.sweep import plan as PL
-from fencesweep.study.sweep import runs
 from fencesweep.study.spec import spec as S
 from fencesweep.study.store import table as store
+from fencesweep.study.sweep import plan as PL
+from fencesweep.study.sweep import runs
 from fencesweep.study.sweep.progress import bar as progress_bar
 
 #: local workers: "fork" (inherit this process's loaded kernels; Linux) or "loky" (fresh processes)

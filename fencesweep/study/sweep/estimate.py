@@ -20,13 +20,11 @@ from typing import Callable
 
 from fencesweep.errors import UsageError
 from fencesweep.kernel import cache
-from fencesweep.study.sweep import output
-from fencesweep.study.sweep import plan as PL
-from fencesweep.study.sweep import runs
 from fencesweep.study.spec import spec as S
-from fencesweep.study.sweep import verify as V
+from fencesweep.study.sweep import output, runs
+from fencesweep.study.sweep import plan as PL
 from fencesweep.study.sweep import sample as VS
-
+from fencesweep.study.sweep import verify as V
 
 #: the kernel group (kernel/cache.py) that each scene's runs compile
 KERNELS = {"cycle": "cycle", "stream": "cycle", "impact": "impact", "freefall": "impact"}

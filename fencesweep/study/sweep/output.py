@@ -17,9 +17,9 @@ from pathlib import Path
 from typing import Callable
 
 from fencesweep.errors import UsageError
-from fencesweep.study.sweep import plan as PL
 from fencesweep.study.spec import spec as S
 from fencesweep.study.store import table as store
+from fencesweep.study.sweep import plan as PL
 
 PLAN_FILE = "plan.json"
 

@@ -41,24 +41,19 @@ the same steps; api.py the functions a Python user (and the CLI) calls.
 """
 from __future__ import annotations
 
-import logging
 import contextlib
+import logging
 import shutil
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
-from fencesweep.study.sweep import compute
-
-from fencesweep.study.store import lock
-
-from fencesweep.study.sweep import output
-
-from fencesweep.study.sweep import runs
-from fencesweep.study.sweep import verify as V
-from fencesweep.study.sweep import plan as PL
 from fencesweep.study.spec import spec as S
+from fencesweep.study.store import lock
+from fencesweep.study.sweep import compute, output, runs
+from fencesweep.study.sweep import plan as PL
+from fencesweep.study.sweep import verify as V
 from fencesweep.study.sweep.assemble import assemble
 from fencesweep.study.sweep.chunks import ChunkTables
 from fencesweep.study.sweep.estimate import describe_plan

@@ -27,9 +27,9 @@ import numpy as np
 from fencesweep import resources
 from fencesweep.errors import UsageError
 from fencesweep.model import params as P
-from fencesweep.study.sweep.progress import bar as progress_bar
 from fencesweep.study.spec import spec as S
 from fencesweep.study.store import table as store
+from fencesweep.study.sweep.progress import bar as progress_bar
 
 ASSEMBLY_BLOCK = 16_384  # rows per Parquet row group of the final table (and per parameter block)
 _CHOICES = tuple(p.name for p in P.TABLE if p.kind == "choice")

@@ -14,8 +14,8 @@ from typing import Callable, Iterable
 import numpy as np
 
 from fencesweep.study.spec import spec as S
-from fencesweep.study.sweep.plan import Plan
 from fencesweep.study.store import table as store
+from fencesweep.study.sweep.plan import Plan
 
 #: chunk size rule: chunks of about CHUNK_SECONDS of work, at least MIN_CHUNKS of them.
 #: A chunk costs ~0.6-2 ms of dispatch and ~2-15 ms to write (benchmarks/sweep_dispatch.py),

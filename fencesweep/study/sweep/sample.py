@@ -28,8 +28,8 @@ import numpy as np
 import pyarrow.parquet as pq
 
 from fencesweep.kernel import numerics as NU
-from fencesweep.study.sweep import plan as PL
 from fencesweep.study.store import table as store
+from fencesweep.study.sweep import plan as PL
 from fencesweep.study.sweep.chunks import ChunkTables, tables_of
 
 MIN_RUNS = 16  # the fewest runs a default sample re-runs

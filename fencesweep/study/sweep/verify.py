@@ -38,10 +38,8 @@ import numpy as np
 
 from fencesweep.errors import VerificationWarning
 from fencesweep.kernel import numerics as NU
-from fencesweep.study.sweep import accuracy
-from fencesweep.study.sweep import compute
-from fencesweep.study.sweep import runs
 from fencesweep.study.store import table as store
+from fencesweep.study.sweep import accuracy, compute, runs
 from fencesweep.study.sweep import plan as PL
 from fencesweep.study.sweep import sample as VS
 from fencesweep.study.sweep.chunks import ChunkTables, tables_of
