@@ -11,7 +11,7 @@ id, every docs/model.md §12 parameter as resolved (defaults <- case <- override
 full precision, so that `reference.row_params` gives another implementation exactly the same
 problem), the docs/model.md §11 results, per contact kind of §5 (fence, tip, rail) whether it
 touched, its maximum penetration and the minimum gap (model.contact_diagnostics), the cost
-(n_rhs, n_steps, wall_time) and how the row was made (method, rtol, versions, hash of the
+(n_rhs, n_steps) and how the row was made (method, rtol, versions, hash of the
 model's file and of the scene). The CSV is rewritten after every finished scene, so an
 interrupted run resumes where it stopped.
 """
@@ -24,7 +24,6 @@ import json
 import math
 import os
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -44,7 +43,7 @@ RESULT_COLS = [
     "t_last_contact", "contact_time", "n_impacts", "t_S1", "t_S2", "t_S3", "t_S4",
     "t_rail", "x_exit", "phi_exit", "max_penetration", "status", "stages",
     "t_release", "q", "n_rhs", "n_steps", "n_segments", "n_scan_events",
-    "n_mode_fixes", "n_retries", "wall_time",
+    "n_mode_fixes", "n_retries",
 ] + [f"{q}_{kind}" for kind in model.CONTACT_KINDS
      for q in ("touch", "max_pen", "min_gap")]
 
@@ -123,8 +122,6 @@ def main(argv=None):
         df.to_csv(tmp, index=False)        # floats at full (round-trip) precision
         os.replace(tmp, args.out)
 
-    t0 = time.perf_counter()
-
     def report(i, row):
         done[row["id"]] = row
         write()
@@ -132,7 +129,7 @@ def main(argv=None):
               f"t_exit={row.get('t_exit', math.nan):.5f} "
               f"peak={row.get('peak_force', math.nan):10.3f} N "
               f"defl={row.get('deflection_max', math.nan):.5f} "
-              f"n_rhs={row.get('n_rhs', 0)} wall={row.get('wall_time', math.nan):.2f} s "
+              f"n_rhs={row.get('n_rhs', 0)} "
               f"{'' if row.get('status') == 'ok' else row.get('status')}", flush=True)
 
     if args.jobs > 1 and len(todo) > 1:
@@ -146,7 +143,7 @@ def main(argv=None):
             report(i, run_scene(s, args.method, args.rtol))
     if not todo:
         write()
-    print(f"done in {time.perf_counter() - t0:.1f} s -> {os.path.relpath(args.out)}")
+    print(f"done -> {os.path.relpath(args.out)}")
 
 
 if __name__ == "__main__":
