@@ -25,6 +25,7 @@ from fencesweep.study.sweep import output, runs
 from fencesweep.study.sweep import plan as PL
 from fencesweep.study.sweep import sample as VS
 from fencesweep.study.sweep import verify as V
+from fencesweep.study.sweep.progress import human
 
 #: the kernel group (kernel/cache.py) that each scene's runs compile
 KERNELS = {"cycle": "cycle", "stream": "cycle", "impact": "impact", "freefall": "impact"}
@@ -132,15 +133,6 @@ def verify_seconds(n_models: int, n_verify: int, requested: bool, per_run: float
     if not requested:
         n_verify = min(n_verify, max(VS.MIN_RUNS, VS.COST_SHARE * n_models / VS.RERUN_COST))
     return n_verify * VS.RERUN_COST * per_run
-
-
-def human(seconds: float) -> str:
-    """A duration as s, min or h."""
-    if seconds < 90:
-        return f"{seconds:.1f} s"
-    if seconds < 5400:
-        return f"{seconds / 60:.1f} min"
-    return f"{seconds / 3600:.1f} h"
 
 
 def of_plan(plan: PL.Plan, out: Path) -> Estimate:

@@ -84,17 +84,19 @@ class Lines(_Off):
         done = self.n - self._initial
         left = ""
         if self.total and 0 < done and self.n < self.total:
-            left = f", about {_duration(spent * (self.total - self.n) / done)} left"
+            left = f", about {human(spent * (self.total - self.n) / done, 0)} left"
         extra = f", {self._postfix}" if self._postfix else ""
-        print(f"{self.desc}: {self.n:,}{of} {self.unit}s{share}, {_duration(spent)}{left}{extra}",
+        print(f"{self.desc}: {self.n:,}{of} {self.unit}s{share}, {human(spent, 0)}{left}{extra}",
               file=sys.stderr, flush=True)
 
 
-def _duration(seconds: float) -> str:
+def human(seconds: float, digits: int = 1) -> str:
+    """A duration as s, min or h: `digits` after the point in s and min (the dry run's estimates
+    give one, the progress lines none), one in h."""
     if seconds < 90:
-        return f"{seconds:.0f} s"
+        return f"{seconds:.{digits}f} s"
     if seconds < 5400:
-        return f"{seconds / 60:.0f} min"
+        return f"{seconds / 60:.{digits}f} min"
     return f"{seconds / 3600:.1f} h"
 
 
