@@ -93,6 +93,12 @@ class SweepInterrupted(KeyboardInterrupt):
         super().__init__(f"{self.saved_text}; the same call again (same spec and out) computes only the rest")
 
 
+class WorkerError(RuntimeError):
+    """A Dask worker cannot run the package's tasks: it cannot import fencesweep, or runs another
+    version of it (sweep/cluster.py). The message names the worker's address; the CLI prints it and
+    exits with code 1, and the chunks finished so far are kept for the next run."""
+
+
 class VerificationWarning(UserWarning):
     """A sweep's table differs from its re-run at tol / 10 by more than the verification's
     threshold (sweep/verify.py)."""

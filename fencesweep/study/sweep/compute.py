@@ -1,5 +1,5 @@
 """Running a plan's pending chunks (step 3 of sweep/pipeline.py): in this process, on local worker
-processes, or on a Dask cluster through joblib.
+processes, or on a Dask cluster (sweep/cluster.py).
 
 A task carries only its chunk's scene numbers; the worker resolves them, runs them and writes
 the chunk atomically into the work directory (with Dask the client writes it), so results never
@@ -7,7 +7,8 @@ queue up in the parent. On Linux the local workers are forked from this process 
 loaded the compiled kernels (which takes about as long as planning, so a forked helper plans
 meanwhile: plan_while_loading): they start at once and load nothing. Elsewhere they are loky
 processes, which load the kernels from Numba's cache. A worker exits when the sweep's process
-is gone, and Ctrl-C is the parent's to handle (it stops the workers).
+is gone, and Ctrl-C is the parent's to handle (it stops the workers). Dask's workers are warmed
+up once, before their first chunk (sweep/cluster.py).
 """
 from __future__ import annotations
 
@@ -26,12 +27,11 @@ from typing import Callable, Iterable, Iterator
 
 import numpy as np
 
-from fencesweep.errors import UsageError
 from fencesweep.model import params as P
 from fencesweep.study.spec import spec as S
 from fencesweep.study.store import table as store
 from fencesweep.study.sweep import plan as PL
-from fencesweep.study.sweep import runs
+from fencesweep.study.sweep import cluster, runs
 from fencesweep.study.sweep.progress import bar as progress_bar
 
 #: local workers: "fork" (inherit this process's loaded kernels; Linux) or "loky" (fresh processes)
@@ -158,23 +158,6 @@ def _completed(pool, calls: Iterable[tuple], ahead: int) -> Iterator:
     return results()
 
 
-@contextlib.contextmanager
-def _dask(scheduler: str | None):
-    """joblib's dask backend on a running scheduler."""
-    try:
-        import joblib
-        from dask.distributed import Client
-    except ImportError as exc:
-        raise UsageError(f"--backend dask needs dask.distributed ({exc}); install it with "
-                         f"pip install 'fencesweep[dask]'") from None
-    try:
-        client = Client(scheduler, timeout="20s")
-    except (OSError, TimeoutError) as exc:
-        raise UsageError(f"--scheduler {scheduler!r}: cannot reach the Dask scheduler ({exc})") from None
-    with client, joblib.parallel_config(backend="dask"):
-        yield
-
-
 def plan_while_loading(spec: S.Spec, progress: bool, params_dir: Path, simulate: Callable | None) -> tuple:
     """make_plan in a forked helper process while this process loads the kernels on the
     first valid scene; returns (plan, seconds the kernels took to load)."""
@@ -202,19 +185,16 @@ def start_pool(stack: contextlib.ExitStack, jobs: int, spec: S.Spec, simulate: C
 
 
 def run_calls(stack: contextlib.ExitStack, make_calls: Callable, jobs: int, local: bool, scheduler: str | None,
-              shared: tuple, pool=None) -> Iterator:
+              shared: tuple, pool=None, warm: list | None = None) -> Iterator:
     """The results of calls (fn, *args), as they finish: in this process (jobs 1), on `pool`
     (start_pool) or else on `jobs` local worker processes (entered on `stack`: they stop when it
-    closes), or on Dask.
+    closes), or on Dask (sweep/cluster.py; with `warm`, scenes to warm every worker up with first).
     make_calls(where) yields the calls for where = "here", "pool" or "dask"; each fn takes the
     sweep's `shared` (spec, simulate) as its last argument, which a pool's workers already hold
     (_init_worker): calls for "pool" pass None."""
     if not local:
-        import joblib
-
-        stack.enter_context(_dask(scheduler))
-        return joblib.Parallel(n_jobs=-1, return_as="generator_unordered", batch_size=1, pre_dispatch="2*n_jobs")(
-            joblib.delayed(fn)(*args) for fn, *args in make_calls("dask"))
+        client = stack.enter_context(cluster.connect(scheduler, None if warm is None else (shared[0], warm, shared[1])))
+        return cluster.results(client, make_calls("dask"), shared)
     if pool is None and jobs == 1:
         return (fn(*args) for fn, *args in make_calls("here"))
     pool = pool or stack.enter_context(_pool(jobs, shared, START_METHOD))
@@ -242,7 +222,8 @@ def compute_chunks(plan: PL.Plan, spec: S.Spec, work: Path, pending: list, done:
 
     stats = []
     with contextlib.ExitStack() as stack:
-        results = run_calls(stack, calls, jobs, local, scheduler, shared, pool)
+        warm = None if local else [int(plan.first_row[m]) for m in plan.variants.values()]  # as runs.warm_up
+        results = run_calls(stack, calls, jobs, local, scheduler, shared, pool, warm)
         bar = stack.enter_context(contextlib.closing(progress_bar(
             plan.n_scenes - plan.skipped, Path(spec.path).stem if spec.path else "sweep", progress,
             initial=int(rows_of[done].sum()) if done else 0)))
