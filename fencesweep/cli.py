@@ -18,7 +18,7 @@ import sys
 import warnings
 from pathlib import Path
 
-from fencesweep.errors import MissingInput, MissingTable, UsageError, VerificationWarning, WriteError
+from fencesweep.errors import MissingInput, MissingTable, UsageError, VerificationWarning, WorkerError, WriteError
 from fencesweep.model import params as P
 from fencesweep.study import api
 from fencesweep.version import __version__
@@ -152,9 +152,7 @@ def add_grid_parser(sub) -> argparse.ArgumentParser:
     g.add_argument("--no-resume", action="store_true", help="discard chunks of an interrupted run")
     g.add_argument("--overwrite", action="store_true",
                    help="replace a table (or discard the unfinished run) that another spec left at the output")
-    g.add_argument("--backend", choices=("loky", "dask"), default="loky",
-                   help="loky: processes on this machine; dask: a Dask cluster (needs --scheduler)")
-    g.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler, e.g. tcp://HOST:8786")
+    add_backend_args(g)
     check = g.add_mutually_exclusive_group()
     check.add_argument("--verify", type=int, default=None, metavar="N",
                        help="re-run N of the runs at a 10x tighter tolerance and record how the table differs "
@@ -168,6 +166,20 @@ def add_grid_parser(sub) -> argparse.ArgumentParser:
     g.add_argument("--quiet", action="store_true", help="no progress bar and no summary (warnings are still shown)")
     g.set_defaults(func=cmd_grid)
     return g
+
+
+def add_backend_args(parser: argparse.ArgumentParser) -> None:
+    """--backend and --scheduler (grid, design, sensitivity; checked by _check_backend_args)."""
+    parser.add_argument("--backend", choices=("loky", "dask"), default="loky",
+                        help="loky: processes on this machine; dask: a Dask cluster (needs --scheduler)")
+    parser.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler, e.g. tcp://HOST:8786")
+
+
+def _check_backend_args(args: argparse.Namespace) -> None:
+    if args.backend == "dask" and not args.scheduler:
+        raise UsageError("--backend dask needs --scheduler ADDRESS (e.g. tcp://HOST:8786)")
+    if args.scheduler and args.backend != "dask":
+        raise UsageError("--scheduler is only used with --backend dask")
 
 
 #: the package's logger: notes, summaries and the compile notice; main() shows it on stderr
@@ -216,10 +228,7 @@ def cmd_grid(args: argparse.Namespace) -> int:
         raise UsageError(f"--out {args.out!r} must end with .parquet")
     if args.jobs is not None and args.jobs < 1:
         raise UsageError(f"--jobs {args.jobs} is not allowed: --jobs must be >= 1")
-    if args.backend == "dask" and not args.scheduler:
-        raise UsageError("--backend dask needs --scheduler ADDRESS (e.g. tcp://HOST:8786)")
-    if args.scheduler and args.backend != "dask":
-        raise UsageError("--scheduler is only used with --backend dask")
+    _check_backend_args(args)
     say = _say(args)
     verify = _verify_arg(args)
     if args.dry_run:
@@ -299,6 +308,7 @@ def add_design_parser(sub) -> argparse.ArgumentParser:
     d.add_argument("spec", metavar="SPEC.yaml", help="a spec with envelope: and design: sections")
     d.add_argument("--out", metavar="DIR", help="output directory (default: the design section's output)")
     d.add_argument("--jobs", type=int, default=1, metavar="N", help="worker processes (default 1)")
+    add_backend_args(d)
     d.add_argument("--quiet", action="store_true", help="no progress bar and no summary")
     d.set_defaults(func=cmd_design)
     return d
@@ -309,7 +319,9 @@ def cmd_design(args: argparse.Namespace) -> int:
 
     if args.jobs < 1:
         raise UsageError(f"--jobs {args.jobs} is not allowed: --jobs must be >= 1")
-    rec = api.design(args.spec, out=args.out, jobs=args.jobs, progress=not args.quiet, log=_say(args))
+    _check_backend_args(args)
+    rec = api.design(args.spec, out=args.out, jobs=args.jobs, progress=not args.quiet, backend=args.backend,
+                     scheduler=args.scheduler, log=_say(args))
     if not args.quiet:
         print("\n".join(summary_lines(rec)))
     return 0
@@ -323,6 +335,7 @@ def add_sensitivity_parser(sub) -> argparse.ArgumentParser:
     g.add_argument("spec", metavar="SPEC.yaml", help="a spec with envelope: and sensitivity: sections")
     g.add_argument("--out", metavar="PATH.parquet", help="the indices table (default: the section's output)")
     g.add_argument("--jobs", type=int, default=None, metavar="N", help="worker processes (default: all cores)")
+    add_backend_args(g)
     g.add_argument("--quiet", action="store_true", help="no progress bar and no summary")
     g.set_defaults(func=cmd_sensitivity)
     return g
@@ -335,7 +348,9 @@ def cmd_sensitivity(args: argparse.Namespace) -> int:
         raise UsageError(f"--jobs {args.jobs} is not allowed: --jobs must be >= 1")
     if args.out is not None and not args.out.endswith(".parquet"):
         raise UsageError(f"--out {args.out!r} must end with .parquet")
-    df = api.sensitivity(args.spec, out=args.out, jobs=args.jobs, progress=not args.quiet, log=_say(args))
+    _check_backend_args(args)
+    df = api.sensitivity(args.spec, out=args.out, jobs=args.jobs, progress=not args.quiet, backend=args.backend,
+                         scheduler=args.scheduler, log=_say(args))
     if not args.quiet:
         print("\n".join(summary_lines(df)))
     return 0
@@ -463,6 +478,9 @@ def main(argv: list[str] | None = None) -> int:
     except (P.ParameterError, UsageError) as exc:
         print(f"fencesweep: error: {exc}", file=sys.stderr)
         return 2
+    except WorkerError as exc:  # a Dask worker without fencesweep: named; the chunks finished are kept
+        print(f"fencesweep: error: {exc}", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":

@@ -27,7 +27,7 @@ import os
 from pathlib import Path
 from typing import Any, Callable
 
-from fencesweep.errors import SweepInterrupted, SweepWriteError, UsageError, WriteError
+from fencesweep.errors import SweepInterrupted, SweepWriteError, UsageError, WorkerError, WriteError
 from fencesweep.study.design import points as PT
 from fencesweep.study.spec import envelope as E
 from fencesweep.study.spec import file as specfile
@@ -100,6 +100,11 @@ def _check_backend(backend: str, scheduler: str | None) -> None:
         raise UsageError("backend = 'dask' needs scheduler = ADDRESS (e.g. 'tcp://HOST:8786')")
     if scheduler and backend != "dask":
         raise UsageError("scheduler is only used with backend = 'dask'")
+
+
+def _dask_at(backend: str, scheduler: str | None) -> str | None:
+    """The scheduler's address when the work goes to a Dask cluster (backend "dask"), else None."""
+    return scheduler if backend == "dask" else None
 
 
 def _note_skipped_loads(spec: S.Spec, log: Callable[[str], None]) -> None:
@@ -188,13 +193,19 @@ def run_grid(spec: Any, *, out: str | Path | None = None, jobs: int | None = Non
 @contextlib.contextmanager
 def _saying_what_is_saved(saved: Callable[[], tuple]):
     """Ctrl-C as SweepInterrupted, a failed write as SweepWriteError, each naming the chunks kept
-    (`saved()`: work directory, chunks saved, chunks in all)."""
+    (`saved()`: work directory, chunks saved, chunks in all); a Dask worker without fencesweep
+    (WorkerError) says them too."""
     try:
         yield
     except KeyboardInterrupt:
         raise SweepInterrupted(*saved()) from None
     except WriteError as exc:
         raise SweepWriteError(exc, *saved()) from None
+    except WorkerError as exc:
+        work, n, total = saved()
+        kept = (f"the {n} chunk{'s' if n != 1 else ''} finished{f' (of {total})' if total else ''} "
+                f"{'are' if n != 1 else 'is'} kept in {work}" if n else "no chunk was finished yet")
+        raise WorkerError(f"{exc}; {kept}") from None
 
 
 def _run_adaptive(sp: S.Spec, out, jobs, resume, backend, scheduler, progress, overwrite, verify, wait, log) -> dict:
@@ -269,34 +280,40 @@ def estimate(spec: Any, *, out: str | Path | None = None, jobs: int | None = Non
 
 
 def design(spec: Any, *, out: str | Path | None = None, jobs: int = 1, progress: bool | None = None,
-           log: Callable[[str], None] | None = None) -> dict:
+           backend: str = "loky", scheduler: str | None = None, log: Callable[[str], None] | None = None) -> dict:
     """`fencesweep design`: search the spec's design variables for the element farthest inside
     every constraint for every load of its envelope, verify it on a fresh sample and write
     OUT/recommended.json, comparison.parquet and verify_loads.parquet (OUT: default the design
-    section's output). Returns the recommendation (recommended.json's content)."""
+    section's output). Returns the recommendation (recommended.json's content). The search judges
+    its points on `jobs` local processes, or with backend "dask" on the cluster at `scheduler`: the
+    same result either way."""
     from fencesweep.study.design import search as D
 
     log = log or _nothing
     progress = progress_wanted(progress)
     _check_jobs(jobs, none_ok=False)
+    _check_backend(backend, scheduler)
     sp = load_spec(spec)
     if sp.design is None:
         raise UsageError(f"{sp.path or 'the spec'} has no design: section (variables, constraints, objective); see "
                          f"sweeps/envelope.yaml")
     _note_skipped_loads(sp, log)
-    return D.run_design(sp, jobs=jobs, progress=progress, out_dir=out, log=log)
+    return D.run_design(sp, jobs=jobs, progress=progress, out_dir=out, log=log, scheduler=_dask_at(backend, scheduler))
 
 
 def sensitivity(spec: Any, *, out: str | Path | None = None, jobs: int | None = None, progress: bool | None = None,
-                log: Callable[[str], None] | None = None):
+                backend: str = "loky", scheduler: str | None = None, log: Callable[[str], None] | None = None):
     """`fencesweep sensitivity`: the Sobol indices (S1, ST) of the spec's sensitivity: outputs to its
-    assumed inputs; runs the sample as a sweep (OUT_runs.parquet, OUT_runs_points.parquet) and
-    writes the indices to OUT (default: the section's output). Returns them as a DataFrame."""
+    assumed inputs; runs the sample as a sweep (OUT_runs.parquet, OUT_runs_points.parquet; on
+    `jobs` local processes, or with backend "dask" on the cluster at `scheduler`) and writes the
+    indices to OUT (default: the section's output). Returns them as a DataFrame."""
     from fencesweep.study.design import sensitivity as SA
 
     _check_jobs(jobs)
     _check_out(out)
+    _check_backend(backend, scheduler)
     sp = load_spec(spec)
     if sp.sensitivity is None:
         raise UsageError(f"{sp.path or 'the spec'} has no sensitivity: section; see sweeps/sensitivity.yaml")
-    return SA.run(sp, jobs=jobs, progress=progress_wanted(progress), out=out, log=log or _nothing)
+    return SA.run(sp, jobs=jobs, progress=progress_wanted(progress), out=out, log=log or _nothing,
+                  backend=backend, scheduler=scheduler)

@@ -19,12 +19,13 @@ minimises the worst overload among feasible points (infeasible ones score 10 - m
 """
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import Callable
 
 import numpy as np
 
@@ -115,10 +116,16 @@ _CTX: dict = {}
 
 
 def _objective(x: np.ndarray) -> float:
-    spec, cfg, loads = _CTX["spec"], _CTX["cfg"], _CTX["loads"]
+    return _score(x, _CTX)
+
+
+def _score(x: np.ndarray, shared: dict) -> float:
+    """The optimiser's objective at `x` in the context `shared` (spec, cfg, loads, simulate,
+    floor): _CTX in this process and its forked workers, an argument on a Dask worker."""
+    spec, cfg, loads = shared["spec"], shared["cfg"], shared["loads"]
     point = dict(zip(cfg.variables, (float(v) for v in x)))
-    summary = judge(evaluate(spec, point, loads, _CTX.get("simulate")), cfg.limits)
-    floor = _CTX.get("floor")
+    summary = judge(evaluate(spec, point, loads, shared.get("simulate")), cfg.limits)
+    floor = shared.get("floor")
     if floor is None:
         return score(summary, cfg.objective)
     return prefer_score(point, summary, cfg, floor)
@@ -157,9 +164,12 @@ class Found:
 
 
 def search(spec, cfg: DesignConfig, jobs: int = 1, progress: bool = False, simulate: Callable | None = None,
-           log: Callable[[str], None] = lambda m: None, floor: float | None = None) -> Found:
+           log: Callable[[str], None] = lambda m: None, floor: float | None = None,
+           scheduler: str | None = None) -> Found:
     """differential_evolution over cfg.variables, each point judged over the spec's envelope; with
-    `floor`, the second stage (prefer_score)."""
+    `floor`, the second stage (prefer_score). The points of a generation are judged on `jobs`
+    local processes or, given `scheduler`, on that Dask cluster's workers (_workers): the result
+    is the same (updating="deferred")."""
     from scipy.optimize import differential_evolution
 
     _CTX.update(spec=spec, cfg=cfg, loads=spec.envelope.loads, simulate=simulate, floor=floor)
@@ -171,21 +181,13 @@ def search(spec, cfg: DesignConfig, jobs: int = 1, progress: bool = False, simul
         bar.update(1)
         bar.set_postfix_str(f"best {intermediate_result.fun:.4f}")
 
-    pool = None
     try:
-        workers: Any = 1
-        if jobs > 1:
-            import multiprocessing
-
-            pool = multiprocessing.get_context("fork").Pool(jobs)
-            workers = pool.map
-        res = differential_evolution(_objective, bounds, seed=cfg.seed, maxiter=cfg.maxiter, popsize=cfg.popsize,
-                                     tol=cfg.tol, polish=False, updating="deferred",  # the same for any jobs
-                                     workers=workers, callback=callback, init="sobol")
+        with _workers(jobs, scheduler) as workers:
+            res = differential_evolution(_objective, bounds, seed=cfg.seed, maxiter=cfg.maxiter, popsize=cfg.popsize,
+                                         tol=cfg.tol, polish=False, updating="deferred",  # the same for any jobs
+                                         workers=workers, callback=callback, init="sobol")
     finally:
         bar.close()
-        if pool is not None:
-            pool.terminate()
     raw = dict(zip(cfg.variables, map(float, res.x)))
     point = {k: round_sig(v, cfg.digits) for k, v in raw.items()}
     point = {k: min(max(v, cfg.variables[k][0]), cfg.variables[k][1]) for k, v in point.items()}
@@ -193,6 +195,30 @@ def search(spec, cfg: DesignConfig, jobs: int = 1, progress: bool = False, simul
         log(f"note: the optimiser did not converge ({res.message}); the best point found is used")
     return Found(point, raw, float(res.fun), bool(res.success), str(res.message), int(res.nit), int(res.nfev),
                  time.perf_counter() - t0)
+
+
+@contextlib.contextmanager
+def _workers(jobs: int, scheduler: str | None):
+    """scipy's `workers` for the context in _CTX: 1 (this process), the map of `jobs` forked
+    processes (which inherit _CTX), or, given `scheduler`, a map over the Dask cluster's workers
+    (sweep/cluster.py mapper: _score with the context sent once; each worker warmed up first)."""
+    if scheduler is not None:
+        from fencesweep.study.sweep import cluster
+
+        spec = _CTX["spec"]
+        with cluster.mapper(scheduler, _score, dict(_CTX),
+                            warm=(spec, cluster.first_rows(spec), _CTX.get("simulate"))) as workers:
+            yield workers
+    elif jobs > 1:
+        import multiprocessing
+
+        pool = multiprocessing.get_context("fork").Pool(jobs)
+        try:
+            yield pool.map
+        finally:
+            pool.terminate()
+    else:
+        yield 1
 
 
 def _bar(total: int, desc: str, enabled: bool):
@@ -243,10 +269,12 @@ def _row(label: str, point: dict, summary: dict, loads_of: Callable) -> dict:
 
 
 def run_design(spec, jobs: int = 1, progress: bool = False, out_dir: str | Path | None = None,
-               simulate: Callable | None = None, log: Callable[[str], None] = lambda m: None) -> dict:
-    """The whole study: search, verify on a dense sample, refine, compare; write
-    OUT/recommended.json, OUT/comparison.parquet and OUT/verify_loads.parquet. Returns the
-    recommendation (the JSON's content)."""
+               simulate: Callable | None = None, log: Callable[[str], None] = lambda m: None,
+               scheduler: str | None = None) -> dict:
+    """The whole study: search (on `jobs` processes or, given `scheduler`, on that Dask cluster),
+    verify on a dense sample, refine, compare (in this process); write OUT/recommended.json,
+    OUT/comparison.parquet and OUT/verify_loads.parquet. Returns the recommendation (the JSON's
+    content)."""
     import pandas as pd
 
     from fencesweep.study.store import table as store
@@ -255,11 +283,11 @@ def run_design(spec, jobs: int = 1, progress: bool = False, out_dir: str | Path 
     out = Path(out_dir or cfg.output)
     t0 = time.perf_counter()
     env = spec.envelope
-    found = search(spec, cfg, jobs, progress, simulate, log)
+    found = search(spec, cfg, jobs, progress, simulate, log, scheduler=scheduler)
     best = None
     if cfg.prefer is not None:  # among the points within `within` of the best smallest margin
         best = found
-        found = search(spec, cfg, jobs, progress, simulate, log, floor=-best.score - cfg.within)
+        found = search(spec, cfg, jobs, progress, simulate, log, floor=-best.score - cfg.within, scheduler=scheduler)
     on_sample = judge(evaluate(spec, found.point, env.loads, simulate), cfg.limits)
     loads, skipped = dense_loads(spec, cfg)
     if skipped:

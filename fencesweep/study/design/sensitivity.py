@@ -51,10 +51,11 @@ def sample_spec(spec, cfg: dict):
 
 
 def run(spec, jobs: int | None = None, progress: bool = False, out: str | Path | None = None,
-        log: Callable[[str], None] = lambda m: None):
-    """Run the sample, judge each point over the envelope, analyse; write the per-run table
-    (OUT with _runs), its per-point table (_runs_points) and the indices table OUT. Returns the
-    indices DataFrame."""
+        log: Callable[[str], None] = lambda m: None, backend: str = "loky", scheduler: str | None = None):
+    """Run the sample (a sweep: on `jobs` local processes, or with backend "dask" on the cluster at
+    `scheduler`), judge each point over the envelope, analyse; write the per-run table (OUT with
+    _runs), its per-point table (_runs_points) and the indices table OUT. Returns the indices
+    DataFrame."""
     import pandas as pd
     import pyarrow as pa
 
@@ -66,7 +67,8 @@ def run(spec, jobs: int | None = None, progress: bool = False, out: str | Path |
     out = Path(out or cfg["output"])
     runs, X, values = sample_spec(spec, cfg)
     table = out.with_name(out.stem + "_runs.parquet")
-    sweep.run_sweep(runs, table, jobs=jobs, progress=progress, log=log, overwrite=True)
+    sweep.run_sweep(runs, table, jobs=jobs, progress=progress, log=log, overwrite=True, backend=backend,
+                    scheduler=scheduler)
     _, pts = PT.write_points(runs, table, J.spec_limits(spec))
     names = list(cfg["bounds"])
     key = pd.DataFrame(values, columns=names)
