@@ -1,12 +1,13 @@
-"""The `dask` backend: a study's work on a Dask cluster (README, Dask), from one place.
+"""The `dask` backend: a study's work on a Dask cluster (docs/dask.md), from one place.
 
 * connect(scheduler, warm): a Client of the scheduler at `scheduler` for a with-block; with
   `warm`, the workers are warmed up first. results(client, calls) runs a sweep's chunks and its
   verification's re-runs there (sweep/compute.py), as they finish, the first given first, never
   more in flight than twice the cluster's threads (at least 2), so that results do not pile up;
-  it waits for workers that have not started yet (a batch system's queue), and a cluster of one
-  thread runs them on that thread (joblib's dask backend, used before, ran them in the client then,
-  and gave up after 10 s without a worker).
+  the sweep's spec and engine go to each worker once. It waits for workers that have not
+  started yet (a batch system's queue), and a cluster of one thread runs the tasks on that
+  thread (joblib's dask backend, used before, ran them in the client then, and gave up after
+  10 s without a worker).
 * warm_up(client, spec, rows): every worker, now and any that joins later, warms up once, before
   its first task: a distributed.WorkerPlugin (PLUGIN) whose setup imports fencesweep there,
   checks that it is the client's (its version and kernel sources: another engine would write
@@ -29,6 +30,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import itertools
+import logging
 import time
 from typing import Callable, Iterable, Iterator
 
@@ -42,7 +44,9 @@ from fencesweep.study.sweep import runs
 #: the package every worker must import, and the name the warm-up is registered under
 PACKAGE = __name__.split(".")[0]
 PLUGIN = f"{PACKAGE}-warm-up"
-_ADVICE = f"every Dask worker needs the same {PACKAGE} installed as this client (README, Dask)"
+_ADVICE = f"every Dask worker needs the same {PACKAGE} installed as this client (docs/dask.md)"
+#: notes for the user (the CLI shows the "fencesweep" logger's INFO on stderr)
+_log = logging.getLogger(__name__)
 
 
 @contextlib.contextmanager
@@ -85,7 +89,7 @@ def results(client, calls: Iterable[tuple], shared=None) -> Iterator:
         fn, *args = call
         if shared is not None and args and args[-1] is shared:
             if not held:
-                held.extend(client.scatter([shared], broadcast=True, hash=False))
+                held.append(_send(client, shared))
             args[-1] = held[0]
         return client.submit(fn, *args, pure=False)
 
@@ -99,6 +103,16 @@ def results(client, calls: Iterable[tuple], shared=None) -> Iterator:
         for call in itertools.islice(calls, max(room(running.count()), 0)):
             running.add(submit(call))
         yield result
+
+
+def _send(client, shared):
+    """`shared` in the memory of every worker of `client`'s cluster, once (its Future), after
+    waiting for the first worker if there is none yet (a batch system's queue)."""
+    if not client.nthreads():
+        _log.info(f"waiting for the first Dask worker to join {client.scheduler.address}")
+        client.wait_for_workers(1)
+    [held] = client.scatter([shared], broadcast=True, hash=False)
+    return held
 
 
 def _is_ours(exc: Exception) -> bool:
@@ -262,7 +276,7 @@ def mapper(scheduler: str | None, fn: Callable, shared, warm: tuple | None = Non
     `func`, the objective scipy wraps, is not sent: `fn` with `shared` must compute the same (it
     is the objective with the context this process holds, as an argument). `warm` as connect's."""
     with connect(scheduler, warm) as client:
-        [held] = client.scatter([shared], broadcast=True, hash=False)
+        held = _send(client, shared)
 
         def map_(func: Callable, xs) -> list:
             return client.gather(client.map(fn, list(xs), shared=held, pure=False))
