@@ -224,3 +224,20 @@ def test_the_api_checks_backend_and_scheduler_for_every_study(tmp_path, study, k
     with pytest.raises(UsageError, match=words):
         getattr(fencesweep, study)(yaml.safe_load(textwrap.dedent(DESIGN)), out=tmp_path / "x.parquet", **kw)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_tasks_wait_for_workers_that_join_later(caplog):
+    import logging
+    import operator
+    import threading
+
+    shared = ("spec", "engine")
+    with distributed.LocalCluster(n_workers=0, threads_per_worker=1, processes=True,
+                                  dashboard_address=":0") as cluster, distributed.Client(cluster) as client:
+        later = threading.Timer(1.0, cluster.scale, [1])  # a batch system starting a worker after a while
+        later.start()
+        with caplog.at_level(logging.INFO, logger="fencesweep"):
+            got = list(C.results(client, [(operator.itemgetter(0), shared)] * 3, shared))
+        later.join()
+    assert got == ["spec"] * 3
+    assert f"waiting for the first Dask worker to join {cluster.scheduler_address}" in caplog.text
