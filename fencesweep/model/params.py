@@ -125,6 +125,14 @@ SCENE_USES: dict[str, frozenset] = {
     "cycle": frozenset(set(NAMES) - {"R", "w", "n_cycles", "period"}),
     "stream": frozenset(set(NAMES) - {"R", "w"}),
 }
+#: Parameters that resolve() checks one by one and copies, which no derived value and no
+#: combination check reads (docs/model.md §1, §3, §12): scenes that differ only in them resolve
+#: alike but for their own values, so a sweep resolves their axes as whole columns
+#: (study/spec/scenes.py). Not in a stream, whose loads take m1 from the scene (§14), and not
+#: B2 or K2 where a spec sets Psi, which fixes K2 from B2 (§3). tests/test_scene_columns.py
+#: checks the claim against resolve().
+ALONE = frozenset({"v", "mu1", "mu2", "m1", "e", "k1", "B2", "K2", "H", "dalpha_perm", "R", "w", "eps_v",
+                   "step_factor"})
 #: the parameters of one load of a stream (docs/model.md §14), the columns of a loads table
 LOAD_NAMES = ("L", "A", "m1", "dP", "R_s", "phi0")
 

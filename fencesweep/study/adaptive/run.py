@@ -202,8 +202,7 @@ def _plan(lay: AM.Layout, ev: Evaluator, work: Path) -> PL.Plan:
     n = len(scenes)
     row_model = np.full(lay.spec.n_scenes, -1, dtype=np.int64)
     row_model[scenes] = np.arange(n)
-    digests = np.stack([scenes, np.zeros(n, dtype=np.int64)], axis=1).tobytes()
-    plan = PL.Plan(lay.spec, row_model, scenes, digests, min(FINAL_CHUNK, max(n, 1)), {}, 0, [], ev.salt)
+    plan = PL.Plan(lay.spec, row_model, scenes, min(FINAL_CHUNK, max(n, 1)), {}, 0, [], ev.salt)
     table = table.set_column(table.schema.get_field_index("_model"), "_model", pa.array(np.arange(n)))
     for c in range(plan.n_chunks):
         m = plan.chunk_models(c)

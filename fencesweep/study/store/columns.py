@@ -28,11 +28,14 @@ def arrow_array(values, typ: pa.DataType) -> pa.Array:
         if arr.dtype.kind in ("iu" if typ == pa.int64() else "fiu"):
             data = pa.py_buffer(np.ascontiguousarray(arr, _NUMPY_OF[typ]))
             return pa.Array.from_buffers(typ, n, [valid, data], null_count=-1 if valid else 0)
-    elif typ == pa.string() and all(isinstance(v, str) for v in values):
-        data = [v.encode() for v in values]
+    elif typ == pa.string() and all(isinstance(v, str) or v is None for v in values):
+        data = [b"" if v is None else v.encode() for v in values]
         offsets = np.zeros(n + 1, np.int32)
         np.cumsum([len(b) for b in data], out=offsets[1:])
-        return pa.Array.from_buffers(typ, n, [None, pa.py_buffer(offsets), pa.py_buffer(b"".join(data))])
+        missing = np.array([v is None for v in values], dtype=bool)
+        valid = pa.py_buffer(np.packbits(~missing, bitorder="little")) if missing.any() else None
+        return pa.Array.from_buffers(typ, n, [valid, pa.py_buffer(offsets), pa.py_buffer(b"".join(data))],
+                                     null_count=-1 if valid else 0)
     return pa.array(values, type=typ)
 
 

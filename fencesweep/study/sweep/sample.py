@@ -25,7 +25,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-import pyarrow.parquet as pq
 
 from fencesweep.kernel import numerics as NU
 from fencesweep.study.store import table as store
@@ -128,45 +127,31 @@ def scores(plan: PL.Plan, work, tables: ChunkTables | None = None) -> tuple:
     names = _columns(scene)
     out = {name: np.full(n, np.inf) for name, _ in EXTREMES[kind(scene)]}
     steps = np.zeros(n)
-    dalpha = dalpha_perm(plan, work) if kind(scene) == "cycle" else None
+    dalpha = dalpha_perm(plan) if kind(scene) == "cycle" else None
     tables = tables_of(plan, work, tables)
     for c in range(plan.n_chunks):
         table = tables.read(c, names + ["_model"])
         cols, owner = _cycles(table, names)
         model = store.numpy_column(table.column("_model"))[owner]
+        runs = plan.chunk_models(c)  # the chunk's runs: scores go to out[...][runs], run by run
+        local, k = model - runs.start, len(runs)
         per = _cycle_scores(cols, dalpha[model]) if dalpha is not None else _impact_scores(cols)
         for name, score in per.items():
-            np.minimum.at(out[name], model, np.where(np.isnan(score), np.inf, score))
+            best = np.full(k, np.inf)
+            np.minimum.at(best, local, np.where(np.isnan(score), np.inf, score))
+            out[name][runs.start:runs.stop] = np.minimum(out[name][runs.start:runs.stop], best)
         for name, col in zip(STEPS, ("n_steps", "n_rejected")):
             if col in cols:
-                total = np.zeros(n)
-                np.add.at(total, model, np.nan_to_num(cols[col]))
-                out[name] = np.minimum(out[name], np.where(total > 0, -total, np.inf))
-        np.add.at(steps, model, np.nan_to_num(cols["n_steps"]))
+                total = np.bincount(local, weights=np.nan_to_num(cols[col]), minlength=k)
+                out[name][runs.start:runs.stop] = np.minimum(out[name][runs.start:runs.stop],
+                                                             np.where(total > 0, -total, np.inf))
+        steps[runs.start:runs.stop] += np.bincount(local, weights=np.nan_to_num(cols["n_steps"]), minlength=k)
     return out, steps
 
 
-def dalpha_perm(plan: PL.Plan, work) -> np.ndarray:
-    """dalpha_perm of each model run: from the parameter blocks of the planning pass (resolved
-    here for a block without its file)."""
-    out = np.empty(plan.n_models)
-    first = plan.first_row
-    for block, start in enumerate(range(0, plan.n_scenes, PL.ASSEMBLY_BLOCK)):
-        stop = min(plan.n_scenes, start + PL.ASSEMBLY_BLOCK)
-        models = np.nonzero((first >= start) & (first < stop))[0]
-        if len(models) == 0:
-            continue
-        rows = np.nonzero(plan.row_model[start:stop] >= 0)[0] + start
-        try:
-            col = store.numpy_column(pq.ParquetFile(PL.params_path(work, block)).read(columns=["dalpha_perm"])
-                                     .column("dalpha_perm"))
-        except (OSError, ValueError, KeyError):
-            col = None
-        if col is not None and len(col) == len(rows):
-            out[models] = col[np.searchsorted(rows, first[models])]
-        else:
-            out[models] = [plan.spec.resolve(int(first[m]))["dalpha_perm"] for m in models]
-    return out
+def dalpha_perm(plan: PL.Plan) -> np.ndarray:
+    """dalpha_perm of each model run, from the plan's columns (spec/scenes.py)."""
+    return plan.columns().column("dalpha_perm", plan.first_row).astype(np.float64)
 
 
 def choose(plan: PL.Plan, work, n: int | None = None, tables: ChunkTables | None = None) -> Sample:
@@ -187,7 +172,7 @@ def choose(plan: PL.Plan, work, n: int | None = None, tables: ChunkTables | None
             chosen.append(m)
             spent += cost[m]
     drawn = []
-    for row in _random_rows(plan, int(plan.spec.hash[:16], 16)):
+    for row in random_rows(plan):
         if len(chosen) == target:
             break
         m = int(plan.row_model[row])
@@ -226,6 +211,19 @@ def _extremes(crit: dict, target: int) -> tuple:
         if len(order) == before:
             break
     return order, {name: runs[0] for name, runs in ranked.items() if runs}
+
+
+def expected_random(plan: PL.Plan, n: int | None = None) -> int:
+    """How many runs the random part of a sample of `n` runs (None: the default size) takes when
+    its extremes fill their half (choose): the sample's size less the extremes wanted."""
+    target = default_size(plan.n_models) if n is None else min(int(n), plan.n_models)
+    n_crit = len(EXTREMES[kind(plan.spec.scene)])
+    return target - (max(n_crit, target // 2) if target >= n_crit else target)
+
+
+def random_rows(plan: PL.Plan) -> np.ndarray:
+    """The table's random draw of rows (_random_rows), seeded by the spec's hash, as choose takes it."""
+    return _random_rows(plan, int(plan.spec.hash[:16], 16))
 
 
 def _random_rows(plan: PL.Plan, seed: int) -> np.ndarray:
