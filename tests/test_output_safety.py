@@ -238,9 +238,9 @@ def test_full_disk_writing_chunks_keeps_them_and_the_rerun_finishes(tmp_path, sp
     work = output.work_root(out) / PL.plan_salt(specfile.load(spec_file))[:16]
     full_disk_after(monkeypatch, 3)
     monkeypatch.setattr(sweep.runs, "SERIAL_BELOW", 0.0)  # 2 jobs: really on forked workers
-    # the chunks in their own order, as one process runs them (workers start the costly ones
-    # first, runs.heaviest_first, which with the fake engine's timings could be any): 0, 1, 2 fit
-    monkeypatch.setattr(sweep.runs, "heaviest_first", lambda plan, chunks, timed: list(chunks))
+    # the chunks in their own order, as one process runs them (workers start the lightest ones
+    # last, runs.dispatch_order, which with the fake engine's timings could be any): 0, 1, 2 fit
+    monkeypatch.setattr(sweep.runs, "dispatch_order", lambda plan, chunks, timed, jobs: list(chunks))
     assert cli.main(["grid", str(spec_file), "--out", str(out), "--jobs", str(jobs), "--quiet"]) == 1
     err = capfd.readouterr().err  # (the workers' stderr too)
     saved = sorted(p.name for p in work.glob("chunk-*.parquet"))
@@ -273,7 +273,9 @@ def test_full_disk_writing_the_table_keeps_the_old_one(tmp_path, spec_file, fake
     monkeypatch.setattr(pq.ParquetWriter, "write_table", write_table)
     assert cli.main(["grid", str(spec_file), "--out", str(out), "--jobs", "1", "--quiet"]) == 1
     work = output.work_root(out) / PL.plan_salt(specfile.load(spec_file))[:16]
-    assert capsys.readouterr().err == (f"fencesweep: error: no space left on device writing {out}; the {N_CHUNKS} "
+    saved = len(list(work.glob("chunk-*.parquet")))  # the table is written as its chunks arrive:
+    assert 0 < saved < N_CHUNKS  # its second block failed before the last chunk was computed
+    assert capsys.readouterr().err == (f"fencesweep: error: no space left on device writing {out}; the {saved} "
                                        f"finished chunks are kept in {work} — free space and run the same command "
                                        f"again\n")
     assert out.read_bytes() == old and no_temporary_files(tmp_path)  # no half-written table in its place

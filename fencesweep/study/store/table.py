@@ -14,6 +14,7 @@ Every file is written atomically: to a temporary file in the same directory, the
 """
 from __future__ import annotations
 
+import base64
 import contextlib
 import hashlib
 import json
@@ -85,6 +86,8 @@ def _json_default(x):
 #: pandas' own schema key for DataFrame.attrs (pandas >= 2.1): `pd.read_parquet` of a table gives
 #: df.attrs = {"units": {column: unit}, "fencesweep": provenance}, as read_table does
 PANDAS_ATTRS = b"PANDAS_ATTRS"
+#: the Parquet key-value entry where Arrow keeps a file's Arrow schema (base64 of its IPC form)
+ARROW_SCHEMA = b"ARROW:schema"
 
 
 def stamp(schema: pa.Schema, attrs: dict | None = None) -> pa.Schema:
@@ -150,22 +153,6 @@ def param_columns() -> list:
     cols += [(p.name, pa.string() if p.kind == "choice" else pa.float64()) for p in P.TABLE]
     cols += [(n, pa.float64()) for n, _, _ in DERIVED]
     return cols
-
-
-def param_table(columns: dict) -> pa.Table:
-    """The label, parameter and derived columns of a block of scenes ({name: list}) as a table."""
-    return pa.table({name: arrow_array(columns[name], typ) for name, typ in param_columns()})
-
-
-def read_param_table(path: str | Path) -> pa.Table | None:
-    """A table written by param_table, as written (None if it is missing or damaged)."""
-    try:
-        table = pq.ParquetFile(path).read()  # (pq.read_table imports pandas)
-    except (OSError, pa.ArrowInvalid):
-        return None
-    if table.column_names != [name for name, _ in param_columns()]:
-        return None
-    return table.combine_chunks()
 
 
 def table_schema(scene: str, meta: dict | None = None) -> pa.Schema:
@@ -320,15 +307,30 @@ class TableWriter:
             raise write_error(exc, self.path) from exc
         self.n_rows += len(arrays[0]) if arrays else 0
 
-    def close(self) -> None:
+    def close(self, meta: dict | None = None) -> None:
         """Finish the file and put it in place; on an error, remove the temporary file and raise
-        a WriteError (the file at `path` keeps what it held)."""
+        a WriteError (the file at `path` keeps what it held). `meta`, known only now (a sweep's
+        verification: sweep/assemble.py), joins the schema's metadata (add_metadata)."""
         try:
+            if meta:
+                self.add_metadata(meta)
             self._writer.close()
         except OSError as exc:
             self.abort()
             raise write_error(exc, self.path) from exc
         self._cm.__exit__(None, None, None)
+
+    def add_metadata(self, meta: dict) -> None:
+        """Add `meta` ({key: JSON value}) to the file's schema metadata after its row groups are
+        written, the pandas attrs (stamp) included: the Parquet footer's key-value metadata is
+        written at close, and its ARROW:schema entry, the Arrow schema that readers take the
+        schema's metadata from, is replaced by the new schema's (ParquetWriter's
+        add_key_value_metadata replaces a key's value)."""
+        self.schema = stamp(self.schema.with_metadata({k: v for k, v in (self.schema.metadata or {}).items()
+                                                       if k != PANDAS_ATTRS} | _meta_bytes(meta)))
+        kv = dict(self.schema.metadata)
+        kv[ARROW_SCHEMA] = base64.b64encode(self.schema.serialize().to_pybytes())
+        self._writer.add_key_value_metadata({k.decode(): v.decode() for k, v in kv.items()})
 
     def abort(self) -> None:
         with contextlib.suppress(Exception):

@@ -1,5 +1,5 @@
-"""The table of a sweep (step 5 of sweep/pipeline.py), assembled block by block from the parameter blocks
-of the planning pass and the chunks of results: rows in scene order, ASSEMBLY_BLOCK rows per
+"""The table of a sweep (step 5 of sweep/pipeline.py), assembled block by block from the spec's scenes
+as columns (spec/scenes.py, as planned) and the chunks of results: rows in scene order, ASSEMBLY_BLOCK rows per
 Parquet row group, one file written atomically with the spec, its hash and the versions in its
 schema metadata (table_meta).
 
@@ -8,12 +8,12 @@ plan, so the table is the same, bit for bit, whatever the jobs, backend or chunk
 """
 from __future__ import annotations
 
-import itertools
 from collections import OrderedDict
 from pathlib import Path
-from typing import Callable, Iterator
+from typing import Callable
 
 import numpy as np
+import pyarrow.compute as pc
 
 from fencesweep.study.store import table as store
 from fencesweep.study.sweep import plan as PL
@@ -24,24 +24,18 @@ CHUNK_CACHE = 8  # chunks held in memory while assembling
 
 def table_meta(plan: PL.Plan) -> dict:
     """The table's provenance (its schema metadata, store.read_metadata): the resolved spec, its
-    hash, source and file, the versions used and the counts of scenes, skipped scenes and runs."""
+    hash, source and file, the versions used and the counts of scenes, skipped scenes and runs.
+    A piece of a larger spec (spec/pieces.py) records that spec, and itself under "piece"."""
     spec = plan.spec
-    return {"spec": spec.normalized(), "spec_hash": spec.hash, "spec_source": spec.source, "spec_path": spec.path,
-            "versions": store.versions(), "scene": spec.scene,
+    whole = spec.whole if spec.whole is not None else spec
+    meta = {"spec": whole.normalized(), "spec_hash": whole.hash, "spec_source": whole.source,
+            "spec_path": whole.path, "versions": store.versions(), "scene": spec.scene,
             "counts": {"scenes": plan.n_scenes - plan.skipped, "skipped": plan.skipped,
                        "model_runs": plan.n_models}}
-
-
-def _block_params(plan: PL.Plan, work: Path, block: int, rows: np.ndarray):
-    """The label and parameter columns of the scenes `rows` of one block: from the file that
-    make_plan wrote, or resolved here if there is none."""
-    table = store.read_param_table(PL.params_path(work, block))
-    if table is not None and table.num_rows == len(rows):
-        return table
-    cols = PL.param_columns()
-    for i in rows:
-        PL.add_params(cols, plan.spec.resolve(int(i)))
-    return store.param_table(cols)
+    if spec.whole is not None:
+        meta["piece"] = {"hash": spec.hash, "first_scene": spec.offset, "scenes": spec.n_scenes,
+                         "of_scenes": whole.n_scenes}
+    return meta
 
 
 def _table_rows(scene: str, cols: dict, n_params: int) -> dict:
@@ -52,65 +46,107 @@ def _table_rows(scene: str, cols: dict, n_params: int) -> dict:
 
 def assemble(plan: PL.Plan, work: Path, out: Path, meta: dict | Callable[[], dict] | None = None,
              tables: ChunkTables | None = None) -> int:
-    """Write the table: rows in scene order, parameters from the planning pass, results from the
-    chunks (`tables`: as the sweep read them, sweep/chunks.py); `meta` is added to its schema metadata
-    (e.g. {"verify": record}). `meta` may be a function that gives it: it is called once the first
-    block is made, before anything is written (a sweep's verification finishes then, its re-runs
-    on the workers while this process makes the block: sweep/pipeline.py).
-
-    Memory holds one block of rows and at most CHUNK_CACHE chunks. Returns the number of
-    rows whose run raised (status 'failed: exception ...').
-    """
-    blocks = _blocks(plan, work, tables_of(plan, work, tables))
-    first = next(blocks, None)
-    meta = meta() if callable(meta) else meta
-    schema = store.table_schema(plan.spec.scene, table_meta(plan) | (meta or {}))
-    failed = 0
-    with store.TableWriter(out, schema) as writer:
-        for cols, n_failed in itertools.chain(() if first is None else (first,), blocks):
-            failed += n_failed
-            writer.write(cols)
-    return failed
+    """Write the table of a plan whose chunks are all in `work` at once (Assembly: fed every
+    chunk, then finished with `meta`). Returns the number of rows whose run raised."""
+    table = Assembly(plan, work, out, tables_of(plan, work, tables))
+    return table.finish(meta)
 
 
-def _blocks(plan: PL.Plan, work: Path, tables: ChunkTables) -> Iterator[tuple]:
-    """The table's blocks in order: ({column: Arrow array}, rows whose run raised)."""
-    spec, size = plan.spec, plan.chunk_size
-    fields = store.table_schema(spec.scene)
-    rcols = [(f.name, f.type) for f in store.result_schema(spec.scene)]
-    np_type = {"double": np.float64, "int64": np.int64, "bool": np.bool_}
-    cache: OrderedDict = OrderedDict()
+class Assembly:
+    """The table of `plan` into `out`, written block by block as the chunks it needs arrive
+    (feed), while the workers run the others; finish writes the rest and closes the file with
+    the metadata known only then (the verification's record). Rows in scene order, parameters
+    from the plan's columns, results from the chunks (`tables`: as the sweep reads them,
+    sweep/chunks.py). Memory holds one block of rows and at most CHUNK_CACHE chunks."""
 
-    def chunk(c: int) -> dict:
-        if c in cache:
-            cache.move_to_end(c)
-            return cache[c]
-        data = store.chunk_arrays(tables.read(c))
-        cache[c] = data
-        if len(cache) > CHUNK_CACHE:
-            cache.popitem(last=False)
+    def __init__(self, plan: PL.Plan, work: Path, out: Path, tables: ChunkTables):
+        self.plan, self.work, self.out, self.tables = plan, Path(work), Path(out), tables
+        self.fields = store.table_schema(plan.spec.scene)
+        self.starts = list(range(0, plan.n_scenes, PL.ASSEMBLY_BLOCK))
+        self._arrived: set = set()
+        self._next = 0  # the next block to write
+        self._writer = None
+        self._cache: OrderedDict = OrderedDict()
+        self.failed = 0  # rows whose run raised (status 'failed: exception ...'), in the blocks written
+
+    def _needs(self, k: int) -> np.ndarray:
+        """The chunks that block `k` takes results from."""
+        m = self.plan.row_model[self.starts[k]:self.starts[k] + PL.ASSEMBLY_BLOCK]
+        return np.unique(m[m >= 0] // self.plan.chunk_size)
+
+    def feed(self, c: int | None = None) -> None:
+        """Chunk `c` is written (None: nothing new): write the blocks now complete, in order."""
+        if c is not None:
+            self._arrived.add(int(c))
+        while self._next < len(self.starts) and self._arrived.issuperset(self._needs(self._next).tolist()):
+            self._write(self._next)
+            self._next += 1
+
+    def finish(self, meta: dict | Callable[[], dict] | None = None) -> int:
+        """Write the blocks left (every chunk is in the work directory by now), add `meta` to the
+        schema metadata (e.g. {"verify": record}; a function that gives it is called after the
+        blocks are written: a sweep's verification finishes then, its re-runs on the workers
+        meanwhile) and put the file in place. Returns the rows whose run raised."""
+        try:
+            self._arrived.update(range(self.plan.n_chunks))
+            self.feed()
+            meta = meta() if callable(meta) else meta
+            self._open().close(meta or None)
+            self._writer = None
+        except BaseException:
+            if self._writer is not None:
+                self._writer.abort()
+            raise
+        return self.failed
+
+    def abort(self) -> None:
+        """Remove the partly written table (the chunks stay: a rerun resumes from them)."""
+        if self._writer is not None:
+            self._writer.abort()
+            self._writer = None
+
+    def _open(self) -> store.TableWriter:
+        if self._writer is None:
+            self._writer = store.TableWriter(self.out, store.table_schema(self.plan.spec.scene, table_meta(self.plan)))
+        return self._writer
+
+    def _chunk(self, c: int) -> dict:
+        if c in self._cache:
+            self._cache.move_to_end(c)
+            return self._cache[c]
+        data = self._cache[c] = store.chunk_arrays(self.tables.read(c))
+        if len(self._cache) > CHUNK_CACHE:
+            self._cache.popitem(last=False)
         return data
 
-    for block, start in enumerate(range(0, plan.n_scenes, PL.ASSEMBLY_BLOCK)):
-        stop = min(plan.n_scenes, start + PL.ASSEMBLY_BLOCK)
-        rows = np.nonzero(plan.row_model[start:stop] >= 0)[0] + start
+    def _write(self, k: int) -> None:
+        """Write block `k`: ({column: Arrow array}) of its scenes that have a run."""
+        plan, start = self.plan, self.starts[k]
+        rows = np.nonzero(plan.row_model[start:start + PL.ASSEMBLY_BLOCK] >= 0)[0] + start
         if len(rows) == 0:
-            continue
-        params = _block_params(plan, work, block, rows)
-        cols = {name: params.column(name) for name in params.column_names}
-        models = plan.row_model[rows]
+            return
+        cols = plan.columns().columns(rows)
+        n_params = len(cols)
+        cols.update(self._results(plan.row_model[rows]))
+        cols = _table_rows(plan.spec.scene, cols, n_params)
+        arrays = {f.name: store.arrow_array(cols[f.name], f.type) for f in self.fields}
+        self.failed += int(pc.sum(pc.starts_with(arrays["status"], "failed: exception")).as_py() or 0)
+        self._open().write(arrays)
+
+    def _results(self, models: np.ndarray) -> dict:
+        """The result columns of the runs `models`, from their chunks."""
+        size = self.plan.chunk_size
+        np_type = {"double": np.float64, "int64": np.int64, "bool": np.bool_}
+        rcols = [(f.name, f.type) for f in store.result_schema(self.plan.spec.scene)]
+        cols = {name: np.empty(len(models), dtype=np_type.get(str(typ), object)) for name, typ in rcols}
         which = models // size
-        for name, typ in rcols:
-            cols[name] = np.empty(len(rows), dtype=np_type.get(str(typ), object))
         for c in np.unique(which):
             sel = which == c
             local = models[sel] - c * size
-            data = chunk(int(c))
+            data = self._chunk(int(c))
             if not np.array_equal(data["_model"][local], models[sel]):
-                raise RuntimeError(f"chunk {c} in {work} does not hold the runs it should; "
+                raise RuntimeError(f"chunk {c} in {self.work} does not hold the runs it should; "
                                    f"rerun with --no-resume")
             for name, _ in rcols:
                 cols[name][sel] = data[name][local]
-        cols = _table_rows(spec.scene, cols, len(params.column_names))
-        n_failed = int(sum(1 for s in cols["status"] if str(s).startswith("failed: exception")))
-        yield {f.name: store.arrow_array(cols[f.name], f.type) for f in fields}, n_failed
+        return cols

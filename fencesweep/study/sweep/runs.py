@@ -106,16 +106,22 @@ def time_sample(plan: Plan, simulate: Callable | None = None, budget: float = 2.
     return (time.perf_counter() - t0) / len(timed), len(timed), timed
 
 
-def heaviest_first(plan: Plan, chunks: list, timed: dict) -> list:
-    """The chunks `chunks` in the order to start them: the most work first (ties by number).
+#: chunks held back to the end of the dispatch, per job: the lightest (dispatch_order)
+LIGHT_LAST = 2
 
-    The light ones then start last, and the workers finish within about one light chunk of each
-    other. In the chunks' own order a sweep whose costly runs come last leaves one worker
-    running its last costly chunk alone: the main job's long_near chunks take ~0.39 s each
-    against ~0.18 s for small_far's, which come first. A chunk's work is estimated as its
-    number of runs times the seconds per run at its middle run, interpolated (np.interp)
-    between the runs of `timed` ({model run: seconds}, time_sample); with fewer than two timed
-    runs the chunks keep their own order."""
+
+def dispatch_order(plan: Plan, chunks: list, timed: dict, jobs: int) -> list:
+    """The chunks `chunks` in the order to start them on `jobs` workers: in their own order, so
+    that they finish about in the table's order and its blocks are written while the others run
+    (sweep/assemble.py), but the LIGHT_LAST x jobs lightest last, the heaviest of them first.
+
+    The workers then finish within about one light chunk of each other. In the chunks' own
+    order alone a sweep whose costly runs come last leaves one worker running its last costly
+    chunk alone: the main job's long_near chunks take ~0.39 s each against ~0.18 s for
+    small_far's, which come first. A chunk's work is estimated as its number of runs times the
+    seconds per run at its middle run, interpolated (np.interp) between the runs of `timed`
+    ({model run: seconds}, time_sample); with fewer than two timed runs the chunks keep their
+    own order."""
     if len(timed) < 2:
         return list(chunks)
     at = np.array(sorted(timed), dtype=float)
@@ -124,4 +130,5 @@ def heaviest_first(plan: Plan, chunks: list, timed: dict) -> list:
     for c in chunks:
         r = plan.chunk_models(c)
         work[c] = len(r) * float(np.interp((r.start + r.stop - 1) / 2, at, seconds))
-    return sorted(chunks, key=lambda c: (-work[c], c))
+    light = set(sorted(chunks, key=lambda c: (work[c], c))[:LIGHT_LAST * jobs])
+    return [c for c in chunks if c not in light] + sorted(light, key=lambda c: (-work[c], c))
