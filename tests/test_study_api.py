@@ -9,7 +9,7 @@ import pytest
 import yaml
 
 import fencesweep
-from fencesweep import cli, resources
+from fencesweep import cli
 from fencesweep.errors import UsageError
 from fencesweep.study import api
 from fencesweep.study.sweep import estimate
@@ -106,13 +106,6 @@ def test_estimate_is_the_dry_run_and_writes_nothing(tmp_path, capsys):
     assert est.notes == [f"a real run would stop before it starts: {est.stop}"]
     assert est.lines()[-1].endswith("of work for 18 runs and 16 re-runs, divided by the cluster's workers")
     assert fencesweep.estimate(path, out=out, overwrite=True).stop is None
-
-
-def test_estimate_of_a_spec_too_large_to_plan_counts_it_only(tmp_path, monkeypatch):
-    monkeypatch.setattr(resources, "available_memory", lambda: 10 * 160)  # 10 scenes' worth
-    est = fencesweep.estimate(write_spec(tmp_path, SPEC), out=tmp_path / "t.parquet")
-    assert est.n_models is None and est.n_scenes == 18 and "expands to 18 scenes" in est.stop
-    assert est.lines()[1] == "  distinct model runs: not counted (planning them would not fit in memory)"
 
 
 @pytest.mark.parametrize("spec, error, words", [

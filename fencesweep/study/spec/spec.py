@@ -49,6 +49,8 @@ class Spec:
     envelope: Any = None  # envelope.Envelope: its loads are the innermost axis
     design: Any = None  # design.DesignConfig: constraints, objective, variables (fencesweep design)
     sensitivity: Any = None  # sensitivity.parse_section: assumed inputs' ranges (fencesweep sensitivity)
+    whole: Any = None  # a piece of a larger spec (spec/pieces.py): that spec
+    offset: int = 0  # a piece's first scene, numbered in `whole`
     _shape: tuple = field(default=(), repr=False)
 
     def __post_init__(self):
@@ -87,18 +89,19 @@ class Spec:
         return entry["case"] if entry["case"] is not None else self.case, over
 
     def describe(self, i: int) -> str:
-        """A short label of scene i for messages: its case and axis values."""
+        """A short label of scene i for messages: its case and axis values (numbered in the
+        whole spec, for a piece)."""
         ci, picks = self.decode(i)
         entry = self.cases[ci]
         bits = []
         case = entry["case"] if entry["case"] is not None else self.case
-        if len(self.cases) > 1:
+        if len((self.whole or self).cases) > 1:
             bits.append(entry["where"] + (f" ({case})" if case else ""))
         elif case:
             bits.append(f"case {case}")
         for axis, k in zip(self.axes, picks):
             bits += [f"{n} = {v!r}" for n, v in zip(axis.names, axis.values[k])]
-        return f"scene #{i}" + (f" ({', '.join(bits)})" if bits else "")
+        return f"scene #{self.offset + i}" + (f" ({', '.join(bits)})" if bits else "")
 
     def resolve(self, i: int) -> dict:
         """Scene number -> the resolved parameter set of params.resolve (raises ParameterError)."""

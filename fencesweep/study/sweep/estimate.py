@@ -6,8 +6,8 @@ sample of runs spread over the sweep is timed; the estimate is the runs still to
 already saved in the work directory are counted as done) times the seconds per run, divided
 by the local processes a real run would use. When the kernels are not compiled on this machine
 yet, the warm-up compiles them, and the estimate includes that time (a first run pays it; the
-dry run has paid it now). A spec too large to plan in this machine's memory is counted only.
-Nothing is written.
+dry run has paid it now). A spec swept in pieces (spec/pieces.py) is estimated from its first
+piece, planned and timed as above, its counts and time scaled to the whole spec. Nothing is written.
 
 `Estimate.lines()` is the text that `--dry-run` prints; `describe_plan` the plan's part of it,
 which a real run also logs (skipped scenes, unused axes).
@@ -20,6 +20,7 @@ from typing import Callable
 
 from fencesweep.errors import UsageError
 from fencesweep.kernel import cache
+from fencesweep.study.spec import pieces as SP
 from fencesweep.study.spec import spec as S
 from fencesweep.study.sweep import output, runs
 from fencesweep.study.sweep import plan as PL
@@ -40,7 +41,7 @@ class Estimate:
     out: Path
     n_scenes: int  # scenes to run (those that invalid: skip drops left out; all of them when not planned)
     shape: str  # the spec's dimensions, e.g. "2 cases x B2 81 x K2 81"
-    n_models: int | None  # distinct model runs (None: not counted, planning would not fit in memory)
+    n_models: int  # distinct model runs (of a spec in pieces: the first piece's, scaled)
     skipped: int = 0  # scenes dropped by invalid: skip
     skipped_example: str | None = None
     chunk_size: int | None = None  # runs per chunk (None: not known, the engine could not be timed)
@@ -60,6 +61,7 @@ class Estimate:
     verify_requested: bool = False  # --verify N (not the default sample)
     verify_seconds: float = 0.0  # estimated seconds of work of the verification (in `seconds`)
     unavailable: str | None = None  # why the time could not be estimated (the engine failed)
+    pieces: int = 1  # pieces the spec is swept in (spec/pieces.py; >1: counts scaled from the first)
 
     @property
     def notes(self) -> list:
@@ -73,9 +75,6 @@ class Estimate:
 
     def lines(self) -> list:
         """The dry run as `fencesweep grid --dry-run` prints it."""
-        if self.n_models is None:
-            return [self.head(), "  distinct model runs: not counted (planning them would not fit in memory)",
-                    f"  a real run would stop before it starts: {self.stop}"]
         return [self.head()] + self.plan_lines() + self.time_lines()
 
     def head(self) -> str:
@@ -88,7 +87,11 @@ class Estimate:
         if self.skipped:
             lines.append(f"  skipped (invalid: skip): {self.skipped} scenes, e.g. {self.skipped_example}")
         shared = self.n_scenes - self.n_models
-        lines.append(f"  distinct model runs: {self.n_models}" + (f" ({shared} scenes share a run)" if shared else ""))
+        if self.pieces > 1:
+            lines.append(f"  written in {self.pieces} pieces of up to {SP.piece_limit():,} scenes, a Parquet dataset "
+                         f"of {self.pieces} parts; the counts below are the first piece's, scaled")
+        about = "about " if self.pieces > 1 else ""
+        lines.append(f"  distinct model runs: {about}{self.n_models}" + (f" ({shared} scenes share a run)" if shared else ""))
         if self.chunk_size:
             lines.append(f"  chunks: {self.n_chunks} of up to {self.chunk_size} runs")
         for axis in self.unused_axes:
@@ -156,12 +159,12 @@ def estimate(spec: S.Spec, out: Path, jobs: int, resume: bool = True, backend: s
              verify: bool | int | None = None) -> Estimate:
     """Plan `spec` into `out`, time the engine on a sample and estimate the run on `jobs` local
     processes (backend loky) or a Dask cluster, the verification (`verify` as run_sweep takes
-    it) included; write nothing. A spec too large to plan is counted only (n_models None, `stop`
-    says why). An engine that fails gives `unavailable`."""
-    problem = PL.plan_size_problem(spec)
-    if problem:  # count only: planning would not fit in memory
-        return Estimate(spec.path or "spec", spec.scene, out, spec.n_scenes, spec.shape_text(), None, stop=problem)
-    plan = PL.make_plan(spec, progress=progress)
+    it) included; write nothing. A spec in pieces is estimated from its first (_in_pieces). An
+    engine that fails gives `unavailable`."""
+    first, n_parts = next(SP.pieces(spec)), SP.n_pieces(spec)
+    if n_parts > 1:
+        return _in_pieces(spec, first, n_parts, out, jobs, backend, overwrite, simulate, verify)
+    plan = PL.make_plan(spec)
     work = output.work_root(out) / plan.salt[:16]
     if plan.chunk_size is None and resume:
         plan.chunk_size = output.recorded_chunk_size(work)
@@ -193,4 +196,27 @@ def estimate(spec: S.Spec, out: Path, jobs: int, resume: bool = True, backend: s
         est.verify_requested = requested
         est.verify_seconds = verify_seconds(plan.n_models, est.verify_runs, requested, per_run)
         est.seconds += est.verify_seconds / (est.jobs or 1)
+    return est
+
+
+def _in_pieces(spec: S.Spec, first: S.Spec, n_parts: int, out: Path, jobs: int, backend: str, overwrite: bool,
+               simulate: Callable | None, verify: bool | int | None) -> Estimate:
+    """The estimate of a spec swept in pieces (spec/pieces.py): its first piece planned and
+    timed as a whole spec is, the runs and the time scaled to the whole spec by its scenes."""
+    est = estimate(first, out / "_estimate.parquet", jobs, False, backend, True, False, simulate, verify)
+    scale = spec.n_scenes / first.n_scenes
+    est.spec, est.out, est.shape, est.pieces = spec.path or "spec", out, spec.shape_text(), n_parts
+    est.n_scenes, est.skipped = round(est.n_scenes * scale), round(est.skipped * scale)
+    est.n_models = round(est.n_models * scale)
+    est.n_chunks = None if est.n_chunks is None else round(est.n_chunks * scale)
+    if est.seconds is not None:
+        compiling = est.warm_up if est.compiled else 0.0
+        est.runs_left, est.verify_seconds = round(est.runs_left * scale), est.verify_seconds * n_parts
+        est.verify_runs = None if est.verify_runs is None else est.verify_runs * n_parts
+        est.seconds = compiling + (est.seconds - compiling) * scale
+    if not overwrite:
+        try:
+            output.check_output(spec, out)
+        except UsageError as exc:
+            est.stop = str(exc)
     return est

@@ -2,9 +2,9 @@
 OUT.partial/<id>/ (sweeps/README.md, Resume).
 
 The work directory's id is the start of the plan's salt (a hash of the resolved spec and of the
-package's sources); it holds the chunks as they are written, `plan.json` (the spec, its hash and
-the chunk size, so that a resumed run cuts the same chunks) and the parameter blocks of the
-planning pass. A sweep never destroys another spec's results: its table at OUT, or the saved
+package's sources); it holds the chunks as they are written and `plan.json` (the spec, its hash and
+the chunk size, so that a resumed run cuts the same chunks). A spec swept in pieces writes a
+dataset directory OUT instead (sweep/parts.py), each piece's work directory inside it. A sweep never destroys another spec's results: its table at OUT, or the saved
 chunks of its unfinished run (check_output).
 """
 from __future__ import annotations
@@ -17,8 +17,10 @@ from pathlib import Path
 from typing import Callable
 
 from fencesweep.errors import UsageError
+from fencesweep.study.spec import pieces as SP
 from fencesweep.study.spec import spec as S
 from fencesweep.study.store import table as store
+from fencesweep.study.sweep import parts
 from fencesweep.study.sweep import plan as PL
 
 PLAN_FILE = "plan.json"
@@ -47,7 +49,11 @@ def recorded_chunk_size(work: Path) -> int | None:
 
 
 def saved_chunks(spec: S.Spec, out: Path) -> tuple:
-    """(work directory, chunks saved in it, chunks in all or None) of an interrupted sweep."""
+    """(work directory, chunks saved in it, chunks in all or None) of an interrupted sweep (of a
+    sweep in pieces: the dataset's work directory, the chunks of its unfinished piece)."""
+    if SP.n_pieces(spec) > 1:
+        work = Path(out) / parts.WORK
+        return work, len(list(work.glob("*.partial/*/chunk-*.parquet"))), None
     work = work_root(Path(out)) / PL.plan_salt(spec)[:16]
     saved = len(list(work.glob("chunk-*.parquet"))) if work.exists() else 0
     try:
@@ -72,37 +78,57 @@ def _spec_label(path: str | None, spec_hash: str) -> str:
 
 def check_output(spec: S.Spec, out: Path, adaptive: bool = False) -> None:
     """Refuse (UsageError, naming both specs) to destroy another spec's results at `out`: the
-    table there, or the saved chunks of its unfinished run in OUT.partial/. The same spec's
-    table is replaced by a rerun and its chunks are resumed; chunks of the same spec from
-    another engine can never be reused and are removed. A full grid and an adaptive map
-    (`adaptive`: the run is one) of the same spec do not replace each other either."""
-    this = _spec_label(spec.path, spec.hash)
-    if out.exists():
-        try:
-            meta = store.read_metadata(out)
-        except (OSError, ValueError):  # not Parquet (pyarrow.ArrowInvalid is a ValueError)
-            meta = {}
-        if not isinstance(meta.get("spec_hash"), str):
-            raise UsageError(f"{out} exists and is not a table written by fencesweep grid; not replacing it "
-                             f"with the results of {this}: choose another --out, or add --overwrite to "
-                             f"replace it")
-        if meta["spec_hash"] != spec.hash:
-            that = _spec_label(meta.get("spec_path"), meta["spec_hash"])
-            raise UsageError(f"{out} holds the results of another spec, {that}; this is {this}. Not replacing "
-                             f"it: choose another --out, or add --overwrite to replace it")
-        if ("adaptive" in meta) != adaptive:
-            kind, other = ("the full grid", "an adaptive map") if adaptive else ("an adaptive map", "the full grid")
-            raise UsageError(f"{out} holds {kind} of {this}; not replacing it with {other}: choose another --out "
-                             f"(--adaptive writes SPEC-output_adaptive.parquet by default), or add --overwrite")
-    root = work_root(out)
+    table there (or the dataset of parts there, sweep/parts.py), or the saved chunks of its
+    unfinished run in OUT.partial/. The same spec's table is replaced by a rerun and its chunks
+    are resumed; chunks of the same spec from another engine can never be reused and are
+    removed. A full grid and an adaptive map (`adaptive`: the run is one) of the same spec do
+    not replace each other either. A piece (spec/pieces.py) is judged as the spec it is part of."""
+    whole = spec.whole if spec.whole is not None else spec
+    this = _spec_label(whole.path, whole.hash)
+    if out.is_dir():  # a dataset of parts: its first part says whose it is
+        tables = sorted(out.glob("part-*.parquet"))[:1]
+        if not tables and any(p.name != parts.WORK for p in out.iterdir()):
+            raise UsageError(f"{out} is a directory that holds no table written by fencesweep grid; not writing "
+                             f"the results of {this} into it: choose another --out")
+        roots = [work_root(p) for p in sorted((out / parts.WORK).glob("part-*.parquet.partial"))]
+    else:
+        tables, roots = ([out] if out.exists() else []), [work_root(out)]
+    for table in tables:
+        _check_table(table, out, whole, this, adaptive)
+    for root in roots:
+        _check_work(root, whole, this)
+
+
+def _check_table(table: Path, out: Path, whole: S.Spec, this: str, adaptive: bool) -> None:
+    """check_output's judgement of the table at `table` (the output, or a dataset's first part)."""
+    try:
+        meta = store.read_metadata(table)
+    except (OSError, ValueError):  # not Parquet (pyarrow.ArrowInvalid is a ValueError)
+        meta = {}
+    if not isinstance(meta.get("spec_hash"), str):
+        raise UsageError(f"{out} exists and is not a table written by fencesweep grid; not replacing it "
+                         f"with the results of {this}: choose another --out, or add --overwrite to "
+                         f"replace it")
+    if meta["spec_hash"] != whole.hash:
+        that = _spec_label(meta.get("spec_path"), meta["spec_hash"])
+        raise UsageError(f"{out} holds the results of another spec, {that}; this is {this}. Not replacing "
+                         f"it: choose another --out, or add --overwrite to replace it")
+    if ("adaptive" in meta) != adaptive:
+        kind, other = ("the full grid", "an adaptive map") if adaptive else ("an adaptive map", "the full grid")
+        raise UsageError(f"{out} holds {kind} of {this}; not replacing it with {other}: choose another --out "
+                         f"(--adaptive writes SPEC-output_adaptive.parquet by default), or add --overwrite")
+
+
+def _check_work(root: Path, whole: S.Spec, this: str) -> None:
+    """check_output's judgement of the unfinished runs saved in the work root `root`."""
     for work in sorted(root.iterdir()) if root.is_dir() else ():
         try:
             state = json.loads((work / PLAN_FILE).read_text())
         except (OSError, ValueError):  # planning never finished there: no chunk was saved
             continue
         saved = len(list(work.glob("chunk-*.parquet")))
-        other = state.get("spec_hash")
-        if saved and isinstance(other, str) and other != spec.hash:
+        other = state.get("whole_hash", state.get("spec_hash"))
+        if saved and isinstance(other, str) and other != whole.hash:
             that = _spec_label(state.get("spec_path"), other)
             raise UsageError(f"{root} holds the unfinished run of another spec, {that} ({saved} of "
                              f"{state.get('n_chunks', '?')} chunks saved); this is {this}. Not discarding it: "
@@ -138,11 +164,8 @@ def _not_a_directory(path: Path) -> Path:
 
 
 def check_can_start(spec: S.Spec, out: Path, overwrite: bool = False) -> None:
-    """Raise UsageError if a sweep of `spec` into `out` must not start: too large to plan
-    (plan_size_problem), or, without `overwrite`, another spec's results at `out` (check_output)."""
-    problem = PL.plan_size_problem(spec)
-    if problem:
-        raise UsageError(problem)
+    """Raise UsageError if a sweep of `spec` into `out` must not start: without `overwrite`,
+    another spec's results at `out` (check_output)."""
     if not overwrite:
         check_output(spec, out)
 
@@ -166,7 +189,8 @@ def write_state(work: Path, plan: PL.Plan) -> None:
     """Record the plan in the work directory (PLAN_FILE): the spec, its hash and file, the salt
     and the chunk size, so that a resumed run cuts the same chunks and check_output can name it."""
     spec = plan.spec
-    state = {"spec": spec.normalized(), "spec_hash": spec.hash, "spec_path": spec.path, "salt": plan.salt,
-             "chunk_size": plan.chunk_size, "n_chunks": plan.n_chunks}
+    whole = spec.whole if spec.whole is not None else spec
+    state = {"spec": spec.normalized(), "spec_hash": spec.hash, "spec_path": whole.path, "salt": plan.salt,
+             "whole_hash": whole.hash, "chunk_size": plan.chunk_size, "n_chunks": plan.n_chunks}
     with store.atomic_path(work / PLAN_FILE) as tmp:
         tmp.write_text(json.dumps(state, indent=1))
