@@ -8,7 +8,8 @@ They are imported when first used, so that `import fencesweep` loads neither pan
 """
 from fencesweep.version import __version__
 from fencesweep.errors import (DesignError, EnvelopeError, ParameterError, SensitivityError, SpecError,
-                               SweepInterrupted, SweepWriteError, UsageError, VerificationWarning, WriteError)
+                               SweepInterrupted, SweepWriteError, UsageError, VerificationWarning, WorkerError,
+                               WriteError)
 from fencesweep.model.params import CASES, resolve
 from fencesweep.model.simulate import simulate, simulate_resolved
 
@@ -21,7 +22,7 @@ _LAZY = {"grid": "fencesweep.study.api", "estimate": "fencesweep.study.api", "de
 #: file that could not be written, an interrupted sweep, a verification that failed (errors.py)
 __all__ = ["simulate", "simulate_resolved", "resolve", "CASES", "__version__",
            "ParameterError", "SpecError", "EnvelopeError", "DesignError", "SensitivityError", "UsageError",
-           "WriteError", "SweepWriteError", "SweepInterrupted", "VerificationWarning",
+           "WriteError", "SweepWriteError", "SweepInterrupted", "VerificationWarning", "WorkerError",
            "grid", "estimate", "design", "sensitivity", "points", "read_table", "to_xarray"]
 
 

@@ -22,6 +22,7 @@ import pytest
 
 from fencesweep.model import simulate as api
 from fencesweep import cli
+from fencesweep.study.spec.scenes import key_bytes
 from fencesweep.study.sweep import assemble
 from fencesweep.study.sweep import chunks
 from fencesweep.study.sweep import compute
@@ -33,6 +34,7 @@ from fencesweep.study.sweep import plan as PL
 from fencesweep.study.sweep import verify as V
 from fencesweep.model import params as P
 from fencesweep.model import results as R
+from fencesweep.study.spec import pieces as SP
 from fencesweep.study.spec import spec as S
 from fencesweep import resources
 from fencesweep.errors import UsageError
@@ -177,20 +179,20 @@ def test_same_table_from_loky_workers(tmp_path, monkeypatch):
     assert res.jobs == 2 and res.out.read_bytes() == ref.out.read_bytes()
 
 
-def test_same_table_without_the_planning_pass_parameter_blocks(tmp_path):
-    """A plan made beforehand (no parameter blocks in the work directory): assembly resolves them."""
+def test_same_table_from_a_plan_made_beforehand(tmp_path):
+    """A plan made beforehand (its columns resolved outside the sweep) writes the same table."""
     ref = run(tmp_path, "ref.parquet")
     res = run(tmp_path, "planned.parquet", plan=PL.make_plan(spec()))
     assert res.out.read_bytes() == ref.out.read_bytes()
 
 
-def test_model_key_digest_does_not_depend_on_string_identity():
-    digest = PL._key_digester()
+def test_model_key_bytes_do_not_depend_on_string_identity():
+    digest = key_bytes
     literal, flexible = "flexible", "".join(["flex", "ible"])  # equal, not the same object
     assert flexible is not literal
     a = digest(("cycle", ("drive", "flexible"), ("contact_law", "flexible"), ("B2", 72.0)))
     b = digest(("cycle", ("drive", flexible), ("contact_law", "flexible"), ("B2", 72.0)))
-    assert a == b and len(a) == 16
+    assert a == b
     assert digest(("cycle", ("B2", 72.0))) != digest(("cycle", ("B2", 72.5)))
 
 
@@ -307,18 +309,21 @@ def test_auto_chunk_size_is_recorded_and_reused_on_resume(tmp_path, monkeypatch)
     pd.testing.assert_frame_equal(pd.read_parquet(explicit.out), pd.read_parquet(ref.out))
 
 
-def test_chunks_start_with_the_most_work():
-    """runs.heaviest_first: a chunk's work is its runs times the seconds per run interpolated at
-    its middle run; the most work starts first, so the light chunks are the last to start."""
+def test_chunks_start_in_order_with_the_lightest_last():
+    """runs.dispatch_order: a chunk's work is its runs times the seconds per run interpolated at
+    its middle run; the chunks start in their own order but the LIGHT_LAST x jobs lightest,
+    which start last, the heaviest of them first."""
     plan = PL.make_plan(spec())
     assert (plan.n_models, plan.chunk_size) == (22, 4)  # chunks 0-4 of 4 runs, chunk 5 of 2
+    assert runs.LIGHT_LAST == 2
     rising = {0: 1e-3, 21: 3e-3}  # 1 ms at run 0 to 3 ms at run 21, linear in between
     # work [ms]: 4 x 1.14, 4 x 1.52, 4 x 1.90, 4 x 2.29, 4 x 2.67 and 2 x 2.95 (runs 20-21)
-    assert runs.heaviest_first(plan, list(range(6)), rising) == [4, 3, 2, 1, 5, 0]
-    falling = {0: 3e-3, 21: 1e-3}
-    assert runs.heaviest_first(plan, list(range(6)), falling) == [0, 1, 2, 3, 4, 5]
-    assert runs.heaviest_first(plan, [5, 1, 3], rising) == [3, 1, 5]  # only the chunks asked for
-    assert runs.heaviest_first(plan, [5, 1, 3], {7: 1e-3}) == [5, 1, 3]  # one timed run: no estimate
+    assert runs.dispatch_order(plan, list(range(6)), rising, 1) == [1, 2, 3, 4, 5, 0]
+    assert runs.dispatch_order(plan, list(range(6)), rising, 2) == [3, 4, 2, 1, 5, 0]
+    falling = {0: 3e-3, 21: 1e-3}  # work: 4 x 2.86, 4 x 2.48, ..., 4 x 1.33, 2 x 1.05
+    assert runs.dispatch_order(plan, list(range(6)), falling, 1) == [0, 1, 2, 3, 4, 5]
+    assert runs.dispatch_order(plan, [5, 1, 3], rising, 1) == [3, 1, 5]  # only the chunks asked for
+    assert runs.dispatch_order(plan, [5, 1, 3], {7: 1e-3}, 4) == [5, 1, 3]  # one timed run: no estimate
 
 
 def test_progress_bar_off_shows_nothing_and_imports_no_tqdm():
@@ -468,34 +473,45 @@ def test_each_chunk_is_read_once_and_holding_none_gives_the_same_table(tmp_path,
     assert none.out.read_bytes() == one.out.read_bytes() == two.out.read_bytes()
 
 
-def test_the_verification_finishes_between_the_first_block_and_the_write(tmp_path, monkeypatch):
-    """The assembly makes its first block, then takes the metadata (the sweep's verification
-    finishes then, its re-runs on the workers meanwhile), then opens the table's file; the
-    record is the one in the table."""
+def test_blocks_are_written_as_their_chunks_arrive_and_the_record_at_close(tmp_path, monkeypatch):
+    """The assembly writes each block once its chunks are in, while the workers run the others
+    (the first before the last chunk is computed); the verification begins after the last chunk,
+    its record is taken after the last block and goes into the table at close."""
     events = []
-    real_blocks, real_open, real_begin = assemble._blocks, store.TableWriter.__init__, V.begin
+    real_write, real_close, real_begin = assemble.Assembly._write, store.TableWriter.close, V.begin
+    real_feed = assemble.Assembly.feed
 
-    def blocks(*a):
-        for b in real_blocks(*a):
-            events.append("block")
-            yield b
+    def write(self, k):
+        events.append("block")
+        real_write(self, k)
 
-    def opening(self, *a, **k):
-        events.append("open")
-        real_open(self, *a, **k)
+    def feed(self, c=None):
+        if c is not None:
+            events.append("chunk")
+        real_feed(self, c)
+
+    def closing(self, meta=None):
+        events.append("close")
+        real_close(self, meta)
 
     def begin(*a, **k):
         finish = real_begin(*a, **k)
         events.append("begin")
         return lambda: events.append("record") or finish()
 
-    monkeypatch.setattr(assemble, "_blocks", blocks)
-    monkeypatch.setattr(store.TableWriter, "__init__", opening)
+    monkeypatch.setattr(assemble.Assembly, "_write", write)
+    monkeypatch.setattr(assemble.Assembly, "feed", feed)
+    monkeypatch.setattr(store.TableWriter, "close", closing)
     monkeypatch.setattr(V, "begin", begin)
     monkeypatch.setattr(PL, "ASSEMBLY_BLOCK", 7)
     res = run(tmp_path, jobs=2, serial_below=0.0)
-    assert events == ["begin", "block", "record", "open"] + ["block"] * (math.ceil(40 / 7) - 1)
+    n_blocks = math.ceil(40 / 7)
+    assert events.count("block") == n_blocks and events.count("chunk") == res.n_chunks
+    assert events.index("block") < len(events) - events[::-1].index("chunk") - 1  # one before the last chunk
+    assert events[-3:] == ["begin", "record", "close"] or events[-2:] == ["record", "close"]
+    assert events.index("record") > len(events) - events[::-1].index("block") - 1  # after the last block
     assert res.verify is not None and store.read_metadata(res.out)["verify"] == res.verify
+    assert res.out.read_bytes() == run(tmp_path, "one.parquet", jobs=1).out.read_bytes()
 
 
 # ------------------------------------------------------------------ Dask
@@ -564,49 +580,40 @@ HUGE = """
 """
 
 
-def test_cli_grid_too_large_for_memory_counts_and_stops_before_it_starts(tmp_path, monkeypatch, capsys):
+def test_cli_dry_run_of_1e10_scenes_plans_one_piece(tmp_path, monkeypatch, faked_engine, capsys):
+    """10^10 scenes: the dry run plans and times the first piece only (memory bounded by the
+    piece, not the spec) and scales its counts; nothing is written."""
     import tracemalloc
 
-    def never(*a, **k):
-        raise AssertionError("planned a spec too large to plan")
-
-    monkeypatch.setattr(resources, "available_memory", lambda: 16 * 2**30)
-    monkeypatch.setattr(PL, "make_plan", never)
+    monkeypatch.setattr(SP, "PIECE_SCENES", 100_000)
     path, out = tmp_path / "huge.yaml", tmp_path / "huge.parquet"
     path.write_text(textwrap.dedent(HUGE))
     tracemalloc.start()
     try:
-        assert cli.main(["grid", str(path), "--out", str(out), "--dry-run"]) == 0
+        assert cli.main(["grid", str(path), "--out", str(out), "--dry-run", "--jobs", "1"]) == 0
         peak = tracemalloc.get_traced_memory()[1]
     finally:
         tracemalloc.stop()
     text = capsys.readouterr().out
-    assert peak < 20 * 2**20  # the 1e10 scenes are counted, not allocated
+    assert peak < 100 * 2**20  # a piece of 100,000 scenes planned, not 10^10
     assert "10000000000 scenes (B2 100 x K2 100 x m1 100 x v 100 x mu1 100)" in text
-    assert "distinct model runs: not counted" in text
-    most = 16 * 2**30 // PL.PLAN_BYTES_PER_SCENE
-    assert cli.main(["grid", str(path), "--out", str(out), "--jobs", "1"]) == 2
-    err = capsys.readouterr().err
-    for part in (f"{path} expands to 10000000000 scenes", "1,490.1 GiB of memory", "16.0 GiB available",
-                 f"at most {most} scenes", "one spec per value of grid.B2 gives 100 specs of 100000000 scenes"):
-        assert part in err
-    assert "Traceback" not in err and list(tmp_path.iterdir()) == [path]  # nothing made
+    assert "written in 100000 pieces of up to 100,000 scenes" in text
+    assert "distinct model runs: about 10000000000" in text and "estimated time on 1 job" in text
+    assert list(tmp_path.iterdir()) == [path]  # nothing made
 
 
-def test_plan_size_limit_follows_the_memory_available(tmp_path, monkeypatch):
+def test_piece_size_follows_the_memory_available(tmp_path, monkeypatch):
     sp = spec()  # 2 cases x 2 x 5 x 2 = 40 scenes
-    monkeypatch.setattr(resources, "available_memory", lambda: 40 * PL.PLAN_BYTES_PER_SCENE)
-    assert PL.plan_size_problem(sp) is None and PL.make_plan(sp).n_scenes == 40
-    monkeypatch.setattr(resources, "available_memory", lambda: 39 * PL.PLAN_BYTES_PER_SCENE)
-    msg = PL.plan_size_problem(sp)
-    assert "at most 39 scenes" in msg and "one spec per value of cases gives 2 specs of 20 scenes" in msg
-    with pytest.raises(UsageError, match="expands to 40 scenes"):
-        PL.make_plan(sp)
-    with pytest.raises(UsageError, match="expands to 40 scenes"):
-        run(tmp_path)
-    assert list(tmp_path.iterdir()) == []
-    monkeypatch.setattr(resources, "available_memory", lambda: None)  # unknown: no limit
-    assert PL.plan_size_problem(sp) is None
+    monkeypatch.setattr(resources, "available_memory", lambda: 2 * 40 * SP.PLAN_BYTES_PER_SCENE)
+    assert SP.piece_limit() == 40 and SP.n_pieces(sp) == 1
+    whole = run(tmp_path, "whole.parquet")
+    monkeypatch.setattr(resources, "available_memory", lambda: 2 * 39 * SP.PLAN_BYTES_PER_SCENE)
+    assert SP.piece_limit() == 39 and SP.n_pieces(sp) == 2  # one piece per case
+    parts = run(tmp_path, "parts.parquet")
+    assert parts.out.is_dir() and len(list(parts.out.iterdir())) == 2
+    pd.testing.assert_frame_equal(pd.read_parquet(parts.out), pd.read_parquet(whole.out))
+    monkeypatch.setattr(resources, "available_memory", lambda: None)  # unknown: PIECE_SCENES
+    assert SP.piece_limit() == SP.PIECE_SCENES
 
 
 def test_write_trajectory_round_trip(tmp_path):

@@ -121,7 +121,11 @@ def test_sample_is_deterministic_whatever_the_jobs(tmp_path, reruns, monkeypatch
     monkeypatch.setattr(compute, "start_pool", lambda *a: started.append(a) or real_start(*a))
     b = run(tmp_path, "b.parquet", jobs=2, serial_below=0.0)  # the re-runs on the sweep's 2 forked workers
     assert len(started) == 1  # one pool of workers for the chunks and the re-runs
-    assert sorted(reruns[0]) == sorted(reruns[1]) and a.verify == b.verify
+    # on workers, the sample's likely random rows are re-run beside the chunks, the rest after them
+    early, later = reruns[1:]
+    assert set(early).isdisjoint(later) and set(reruns[0]) == set(later) | (set(early) & set(reruns[0]))
+    assert len(set(early) - set(reruns[0])) <= len(early) // 4  # few re-run in vain
+    assert a.verify == b.verify
     assert a.out.read_bytes() == b.out.read_bytes()
 
 

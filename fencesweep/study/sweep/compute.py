@@ -4,8 +4,7 @@ processes, or on a Dask cluster (sweep/cluster.py).
 A task carries only its chunk's scene numbers; the worker resolves them, runs them and writes
 the chunk atomically into the work directory (with Dask the client writes it), so results never
 queue up in the parent. On Linux the local workers are forked from this process once it has
-loaded the compiled kernels (which takes about as long as planning, so a forked helper plans
-meanwhile: plan_while_loading): they start at once and load nothing. Elsewhere they are loky
+loaded the compiled kernels: they start at once and load nothing. Elsewhere they are loky
 processes, which load the kernels from Numba's cache. A worker exits when the sweep's process
 is gone, and Ctrl-C is the parent's to handle (it stops the workers). Dask's workers are warmed
 up once, before their first chunk (sweep/cluster.py).
@@ -27,7 +26,6 @@ from typing import Callable, Iterable, Iterator
 
 import numpy as np
 
-from fencesweep.model import params as P
 from fencesweep.study.spec import spec as S
 from fencesweep.study.store import table as store
 from fencesweep.study.sweep import plan as PL
@@ -156,25 +154,6 @@ def _completed(pool, calls: Iterable[tuple], ahead: int) -> Iterator:
                 yield fut.result()
 
     return results()
-
-
-def plan_while_loading(spec: S.Spec, progress: bool, params_dir: Path, simulate: Callable | None) -> tuple:
-    """make_plan in a forked helper process while this process loads the kernels on the
-    first valid scene; returns (plan, seconds the kernels took to load)."""
-    with _pool(1, None, "fork") as helper:
-        planned = helper.submit(PL.make_plan, spec, progress, params_dir)
-        t0 = time.perf_counter()
-        fn = simulate or runs.engine()
-        for i in range(min(spec.n_scenes, 100)):
-            try:
-                vals = spec.resolve(i)
-            except P.ParameterError:
-                continue
-            with contextlib.suppress(Exception):  # warm_up reports a failing engine
-                fn(vals, trajectory=False)
-            break
-        loaded = time.perf_counter() - t0
-        return planned.result(), loaded
 
 
 def start_pool(stack: contextlib.ExitStack, jobs: int, spec: S.Spec, simulate: Callable | None):

@@ -2,34 +2,37 @@
 
 run_sweep orchestrates the steps, each in its own module:
 
-1. sweep/plan.py: every scene of the spec is resolved (params.resolve) once, up front, so any bad
-   combination is reported before work starts, and mapped to its model run by
-   params.model_key: scenes that differ only in parameters their model does not use
-   (B2, K2 under a rigid drive, ...) share one run (docs/model.md §8). The same pass
-   writes the parameter columns of the table, block by block, into the work directory.
+1. sweep/plan.py: every scene of the spec is resolved, up front, so any bad combination is
+   reported before work starts, and mapped to its model run by params.model_key: scenes that
+   differ only in parameters their model does not use (B2, K2 under a rigid drive, ...) share
+   one run (docs/model.md §8). Both on whole columns (spec/scenes.py): params.resolve runs once
+   per combination of the values it reads together (the envelope study: 64, not 419,904).
+   A spec of more than pieces.PIECE_SCENES scenes is run in pieces (spec/pieces.py), one after
+   the other, each a spec of its own written into one part of a Parquet dataset (_run_pieces).
 2. sweep/runs.py: the distinct runs, numbered in order of first appearance, are cut into chunks of
    `chunk_size` runs: the spec's, or sized from a short timed sample to take about
    CHUNK_SECONDS each (dispatch and writing then cost well under 1 %), and recorded in
    the work directory (sweep/output.py) so that a resumed sweep cuts the same chunks. A chunk's
    file name carries a digest of the spec hash, the package's source hash, its chunk size
-   and the model keys of its runs, so a changed spec or engine never reuses a stale chunk.
-3. sweep/compute.py: pending chunks run in parallel, the ones with the most work first (estimated
-   from the timed sample: runs.heaviest_first): locally in worker processes, or on a Dask
-   cluster through joblib. A task carries only its chunk's scene numbers; the worker resolves
-   them, runs them and writes the chunk atomically into the work directory `OUT.partial/`
-   beside the output (with Dask the client writes it), so results never queue up in the
-   parent. A killed sweep, rerun, computes only the chunks that are missing. This process
-   reads each chunk as it is written (sweep/chunks.py), for the steps below to take from memory.
-   On Linux the local workers are forked from this process once it has loaded the
-   compiled kernels (which takes about as long as planning, so a forked helper plans
-   meanwhile): they start at once and load nothing. Elsewhere they are loky processes.
+   and its runs' first scenes, so a changed spec or engine never reuses a stale chunk.
+3. sweep/compute.py: pending chunks run in parallel, in their order but the lightest last
+   (estimated from the timed sample: runs.dispatch_order): locally in worker processes, or on
+   a Dask cluster (sweep/cluster.py: each worker warmed up before its first chunk). A task carries only its chunk's scene numbers; the worker
+   resolves them, runs them and writes the chunk atomically into the work directory
+   `OUT.partial/` beside the output (with Dask the client writes it), so results never queue
+   up in the parent. A killed sweep, rerun, computes only the chunks that are missing. This
+   process reads each chunk as it is written (sweep/chunks.py), for the steps below to take
+   from memory, and writes the table's blocks that it completes (step 5). On Linux the local
+   workers are forked from this process once it has loaded the compiled kernels: they start
+   at once and load nothing. Elsewhere they are loky processes.
 4. sweep/verify.py: a sample of the runs (the extremes first, then random) is run again at a 10x
    tighter tolerance and compared with the chunks' results, the table's values (verification).
-   The re-runs go to the local workers, if any, while this process makes the table's first
-   block (step 5), which is written once the record is made.
-5. sweep/assemble.py: the table is assembled block by block from the parameter blocks and the
-   chunks (rows in scene order) into one Parquet file, atomically, the verification's record
-   in its metadata; then the work directory is removed.
+   The re-runs go to the local workers, if any, while this process writes the table's last
+   blocks (step 5).
+5. sweep/assemble.py: the table is assembled block by block from the plan's columns and the
+   chunks (rows in scene order) into one Parquet file, each block as soon as its chunks are
+   in; the file is closed with the verification's record in its metadata and put in place
+   atomically; then the work directory is removed.
 
 The whole run holds the output's lock (store/lock.py: one writer per output), taken once the
 output's directory is known to be writable and before anything is made or removed. A file that
@@ -43,18 +46,21 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import os
 import shutil
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
+from fencesweep.study.spec import pieces as SP
 from fencesweep.study.spec import spec as S
 from fencesweep.study.store import lock
-from fencesweep.study.sweep import compute, output, runs
+from fencesweep.study.store import table as store
+from fencesweep.study.sweep import cluster, compute, output, parts, runs
 from fencesweep.study.sweep import plan as PL
 from fencesweep.study.sweep import verify as V
-from fencesweep.study.sweep.assemble import assemble
+from fencesweep.study.sweep.assemble import Assembly
 from fencesweep.study.sweep.chunks import ChunkTables
 from fencesweep.study.sweep.estimate import describe_plan
 
@@ -96,6 +102,8 @@ class _Run:
     per_run: float | None = None  # seconds per model run, when timed
     timed: dict = field(default_factory=dict)  # {model run: seconds} of the timed sample
     record: dict | None = None  # the verification's record, once made
+    verify: bool | int | None = None  # run_sweep's `verify`
+    early: tuple | None = None  # (rows, results) of the verification's re-runs begun with the chunks
 
 
 #: the default log: the "fencesweep" logger (api.py)
@@ -124,6 +132,10 @@ def run_sweep(spec: S.Spec, out: str | Path | None = None, jobs: int | None = No
     out = Path(out) if out is not None else output.default_output(spec)
     output.check_writable(out)
     output.check_can_start(spec, out, overwrite)  # refused at once: not even the lock file is made
+    if plan is None and SP.n_pieces(spec) > 1:
+        return _run_pieces(spec, out, t0, wait, overwrite, log or _quiet, dict(
+            jobs=jobs, resume=resume, backend=backend, scheduler=scheduler, progress=progress, simulate=simulate,
+            serial_below=serial_below, verify=verify))
     with lock.one_writer(out, wait, log or _quiet):  # before anything is made or removed
         output.check_can_start(spec, out, overwrite)  # again: another run may have finished meanwhile
         if jobs is None:
@@ -139,22 +151,55 @@ def run_sweep(spec: S.Spec, out: str | Path | None = None, jobs: int | None = No
         return _run(run, plan, root, verify, t0)
 
 
+def _run_pieces(spec: S.Spec, out: Path, t0: float, wait: bool, overwrite: bool, log: Callable[[str], None],
+                kw: dict) -> Outcome:
+    """Sweep a spec too large to plan at once piece by piece (spec/pieces.py) into the Parquet
+    dataset OUT (sweep/parts.py), each piece a sweep of its own with the same settings (`kw`);
+    the parts finished by an earlier run of it are kept (unless kw["resume"] is False)."""
+    with lock.one_writer(out, wait, log):
+        output.check_can_start(spec, out, overwrite)  # again: another run may have finished meanwhile
+        parts.open_dataset(out, True)
+        n, done = SP.n_pieces(spec), []
+        for k, piece in enumerate(SP.pieces(spec)):
+            path = out / parts.part_name(k)
+            if kw["resume"] and parts.part_done(piece, path):
+                continue
+            log(f"piece {k + 1} of {n}: scenes {piece.offset:,} to {piece.offset + piece.n_scenes - 1:,}")
+            res = run_sweep(piece, out / parts.WORK / path.name, log=log, overwrite=True, **kw)
+            os.replace(res.out, path)
+            done.append(res)
+        parts.finish_dataset(out, n)
+    metas = [store.read_metadata(out / parts.part_name(k)) for k in range(n)]
+    timings: dict = {}
+    for res in done:
+        for key, value in res.timings.items():
+            timings[key] = timings.get(key, 0) + value
+    return Outcome(out, sum(m["counts"]["scenes"] for m in metas), sum(m["counts"]["model_runs"] for m in metas),
+                   sum(r.n_chunks for r in done), sum(r.computed for r in done), sum(r.reused for r in done),
+                   time.perf_counter() - t0, sum(r.failed_runs for r in done), done[-1].jobs if done else None,
+                   timings, parts.verify_record([m.get("verify") for m in metas]))
+
+
 def _run(run: _Run, plan: PL.Plan, root: Path, verify: bool | int | None, t0: float) -> Outcome:
     """Size the chunks, compute the missing ones, verify (on the same local workers, which stop
     after the table is written) while the table's first block is made, assemble the table,
     remove the work directory."""
-    run.per_run = _size_chunks(run, plan)
+    run.per_run, run.verify = _size_chunks(run, plan), verify
     output.write_state(run.work, plan)
     done = output.chunks_done(plan, run.work)
     pending = sorted(set(range(plan.n_chunks)) - set(done))
     if done:
         run.log(f"resuming: {len(done)} of {plan.n_chunks} chunks already in {run.work}")
     tables = ChunkTables(plan, run.work)  # each chunk read once: as it finishes, or when first needed
+    table = Assembly(plan, run.work, run.out, tables)  # written as the chunks arrive
     with contextlib.ExitStack() as workers:
-        pool = _compute(run, plan, pending, done, workers, tables) if pending else None
+        workers.callback(table.abort)  # a sweep that stops leaves no partial table (its chunks stay)
+        for c in done:
+            table.feed(c)
+        pool = _compute(run, plan, pending, done, workers, tables, table) if pending else None
         meta = _verification(run, plan, verify, pool, tables) if verify is not False else None
         t, verifying = time.perf_counter(), run.timings.get("verify", 0.0)
-        failed = assemble(plan, run.work, run.out, meta, tables)
+        failed = table.finish(meta)
         run.timings["assemble"] = time.perf_counter() - t - (run.timings.get("verify", 0.0) - verifying)
     shutil.rmtree(root)
     return Outcome(run.out, plan.n_scenes - plan.skipped, plan.n_models, plan.n_chunks, len(pending), len(done),
@@ -162,13 +207,13 @@ def _run(run: _Run, plan: PL.Plan, root: Path, verify: bool | int | None, t0: fl
 
 
 def _verification(run: _Run, plan: PL.Plan, verify: bool | int | None, pool, tables: ChunkTables) -> Callable:
-    """Begin the verification (verify.begin: its re-runs go to `pool`, the local workers, if any)
-    and return the function that finishes it, for the assembly to call once it has made the
-    table's first block: {"verify": record}, also kept as run.record. Its seconds go to
-    run.timings["verify"]."""
+    """Begin the verification (verify.begin: its re-runs go to `pool`, the local workers, if any,
+    those begun with the chunks, run.early, aside) and return the function that finishes it, for
+    the assembly to call once it has written the table's blocks: {"verify": record}, also kept
+    as run.record. Its seconds go to run.timings["verify"]."""
     t = time.perf_counter()
     finish = V.begin(plan, run.work, None if verify is None or verify is True else int(verify), run.jobs, run.local,
-                     run.scheduler, run.simulate, run.serial_below, run.per_run, pool, tables)
+                     run.scheduler, run.simulate, run.serial_below, run.per_run, pool, tables, run.early)
     run.timings["verify"] = time.perf_counter() - t
 
     def meta() -> dict:
@@ -181,15 +226,11 @@ def _verification(run: _Run, plan: PL.Plan, verify: bool | int | None, pool, tab
 
 
 def _plan(run: _Run, made: bool) -> PL.Plan:
-    """Plan the sweep, writing the parameter blocks into the work directory: in a forked helper
-    while this process loads the kernels, when the local workers will be forked. A bad spec (or
-    Ctrl-C) removes the work directory if this call made it. Logs skipped scenes and unused axes."""
+    """Plan the sweep (sweep/plan.py). A bad spec (or Ctrl-C) removes the work directory if this
+    call made it. Logs skipped scenes and unused axes."""
     t = time.perf_counter()
     try:
-        if run.local and run.jobs > 1 and compute.START_METHOD == "fork":
-            plan, run.timings["load"] = compute.plan_while_loading(run.spec, run.progress, run.work, run.simulate)
-        else:
-            plan = PL.make_plan(run.spec, progress=run.progress, params_dir=run.work)
+        plan = PL.make_plan(run.spec)
     except BaseException:  # nothing of this planning is worth keeping
         if made:
             shutil.rmtree(run.work, ignore_errors=True)
@@ -210,33 +251,48 @@ def _size_chunks(run: _Run, plan: PL.Plan) -> float | None:
         plan.chunk_size = output.recorded_chunk_size(run.work)
     if plan.chunk_size is not None:
         return None
-    run.timings["warm_up"] = runs.warm_up(plan, run.simulate)
-    per_run, _, run.timed = runs.time_sample(plan, run.simulate, budget=0.5, most=8)
+    per_run, _, run.timed = _sample(run, plan, budget=0.5)
     plan.chunk_size = runs.auto_chunk_size(plan.n_models, per_run)
     return per_run
 
 
-def _compute(run: _Run, plan: PL.Plan, pending: list, done: list, workers: contextlib.ExitStack,
-             tables: ChunkTables):
-    """Warm the engine up (unless sizing the chunks did), choose this process alone when the
-    work left is too small to pay for workers, and run the pending chunks: on workers the most
-    work first (runs.heaviest_first: they then finish together), in this process in their
-    order; each chunk, once written, is read here into `tables`. Returns the local workers,
-    started on `workers` (they stop when it closes), or None (this process, or Dask)."""
-    if run.per_run is None:
+def _sample(run: _Run, plan: PL.Plan, budget: float) -> tuple:
+    """Warm the engine up and time a short sample (runs.warm_up, runs.time_sample): in this
+    process, or with Dask on the cluster (cluster.time_sample: every worker warms up, one of
+    them times the sample; this process compiles nothing that only the workers run). The
+    warm-up's seconds go to run.timings["warm_up"]; returns time_sample's (per run, n, timed)."""
+    if run.local:
         run.timings["warm_up"] = runs.warm_up(plan, run.simulate)
-        run.per_run, _, run.timed = runs.time_sample(plan, run.simulate, budget=0.3, most=8)
+        return runs.time_sample(plan, run.simulate, budget=budget, most=8)
+    run.timings["warm_up"], sampled = cluster.time_sample(run.scheduler, plan, run.simulate, budget=budget, most=8)
+    return sampled
+
+
+def _compute(run: _Run, plan: PL.Plan, pending: list, done: list, workers: contextlib.ExitStack,
+             tables: ChunkTables, table: Assembly):
+    """Warm the engine up (unless sizing the chunks did), choose this process alone when the
+    work left is too small to pay for workers, and run the pending chunks: on workers in their
+    order but the lightest last (runs.dispatch_order: they then finish together), in this
+    process in their order; each chunk, once written, is read here into `tables` and the
+    table's blocks it completes are written (`table`). Returns the local workers, started on
+    `workers` (they stop when it closes), or None (this process, or Dask)."""
+    if run.per_run is None:
+        run.per_run, _, run.timed = _sample(run, plan, budget=0.3)
     if run.local:
         work_left = run.per_run * sum(len(plan.chunk_models(c)) for c in pending)
         if run.jobs > 1 and runs.local_jobs(run.jobs, work_left, run.serial_below) == 1:
             run.log(f"about {work_left:.1f} s of work: running in this process (starting workers costs more)")
             run.jobs = 1
     if run.jobs > 1 or not run.local:  # in one process the order changes nothing
-        pending = runs.heaviest_first(plan, pending, run.timed)
+        pending = runs.dispatch_order(plan, pending, run.timed, run.jobs)
     t = time.perf_counter()
     pool = compute.start_pool(workers, run.jobs, run.spec, run.simulate) if run.local and run.jobs > 1 else None
+    if pool is not None and run.verify is not False:  # the sample's likely random rows, beside the chunks
+        rows = V.early_rows(plan, None if run.verify is None or run.verify is True else int(run.verify))
+        run.early = (set(rows), compute.submit_reruns(pool, rows, V.STEP_FACTOR_SCALE, run.jobs))
     stats = compute.compute_chunks(plan, run.spec, run.work, pending, done, run.jobs, run.local, run.scheduler,
-                                   run.progress, run.simulate, {"salt": plan.salt}, pool, tables.finished)
+                                   run.progress, run.simulate, {"salt": plan.salt}, pool,
+                                   lambda c: (tables.finished(c), table.feed(c)))
     run.timings["compute"] = time.perf_counter() - t
     run.timings.update(compute.worker_timings(stats))
     return pool

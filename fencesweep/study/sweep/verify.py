@@ -64,21 +64,38 @@ def tolerance(vals: dict) -> float:
     return max(base * float(vals["step_factor"]) ** NU.TOL_EXPONENT, NU.TOL_MIN)
 
 
+def early_rows(plan: PL.Plan, n: int | None = None) -> list:
+    """The runs (by their first scene) that the sample's random part (sample.choose) will most
+    likely re-run, known before any chunk is: the first rows of the table's random draw, as many
+    as the sample leaves to random rows once its extremes are chosen (sample.expected_random).
+    A sweep re-runs them on its workers beside its chunks (sweep/pipeline.py); the sample is
+    chosen as ever, after the chunks, and only its re-runs not done yet are run then."""
+    rows = VS.random_rows(plan)[:VS.expected_random(plan, n)]
+    return list(dict.fromkeys(int(r) for r in plan.first_row[plan.row_model[rows]]))
+
+
 def begin(plan: PL.Plan, work: Path, n: int | None = None, jobs: int = 1, local: bool = True,
           scheduler: str | None = None, simulate: Callable | None = None, serial_below: float | None = None,
-          per_run: float | None = None, pool=None, tables: ChunkTables | None = None) -> Callable[[], dict]:
+          per_run: float | None = None, pool=None, tables: ChunkTables | None = None,
+          early: tuple | None = None) -> Callable[[], dict]:
     """Start verifying a plan whose chunks are all in `work` (`tables`: as the sweep read them,
     sweep/chunks.py): choose the sample and, given `pool` (the sweep's workers, still running), submit
     its re-runs to it. Returns the function that finishes: it re-runs the sample unless the
     pool does (on `jobs` local processes, in this one when the work is small, or on Dask), reads
     the table's values, compares, and gives the record. Meanwhile the caller may work: a sweep
-    makes its table's first block while the workers re-run (sweep/pipeline.py)."""
+    writes its table's last blocks while the workers re-run (sweep/pipeline.py). `early`: (rows,
+    the function that gives their re-runs), re-runs submitted to `pool` beforehand (early_rows):
+    only the sample's other rows are submitted now."""
     tables = tables_of(plan, work, tables)
     sample = VS.choose(plan, work, n, tables)
     spec = plan.spec
     rows = [int(plan.first_row[m]) for m in sample.models]
     if pool is not None:
-        rerun_results = compute.submit_reruns(pool, rows, STEP_FACTOR_SCALE, jobs)
+        done, early_results = early if early is not None else (set(), dict)
+        later = compute.submit_reruns(pool, [r for r in rows if r not in done], STEP_FACTOR_SCALE, jobs)
+
+        def rerun_results() -> dict:
+            return early_results() | later()
     else:
         def rerun_results() -> dict:
             use = runs.local_jobs(jobs, (per_run or 1e-3) * VS.RERUN_COST * len(rows), serial_below) \
