@@ -48,6 +48,7 @@ import contextlib
 import logging
 import os
 import shutil
+import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -290,6 +291,7 @@ def _compute(run: _Run, plan: PL.Plan, pending: list, done: list, workers: conte
     if pool is not None and run.verify is not False:  # the sample's likely random rows, beside the chunks
         rows = V.early_rows(plan, None if run.verify is None or run.verify is True else int(run.verify))
         run.early = (set(rows), compute.submit_reruns(pool, rows, V.STEP_FACTOR_SCALE, run.jobs))
+        threading.Thread(target=V.prepare, name="fencesweep-prepare", daemon=True).start()  # this process waits
     stats = compute.compute_chunks(plan, run.spec, run.work, pending, done, run.jobs, run.local, run.scheduler,
                                    run.progress, run.simulate, {"salt": plan.salt}, pool,
                                    lambda c: (tables.finished(c), table.feed(c)))

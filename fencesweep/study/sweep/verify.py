@@ -64,6 +64,12 @@ def tolerance(vals: dict) -> float:
     return max(base * float(vals["step_factor"]) ** NU.TOL_EXPONENT, NU.TOL_MIN)
 
 
+def prepare() -> None:
+    """Import what finishing a verification needs beyond the sweep (scipy.special, share_bound:
+    ~0.1 s), so that a sweep can do it while its workers run the chunks (sweep/pipeline.py)."""
+    import scipy.special  # noqa: F401
+
+
 def early_rows(plan: PL.Plan, n: int | None = None) -> list:
     """The runs (by their first scene) that the sample's random part (sample.choose) will most
     likely re-run, known before any chunk is: the first rows of the table's random draw, as many
