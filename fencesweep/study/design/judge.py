@@ -16,10 +16,24 @@ MARGINS = ["margin_scraped", "margin_overload", "margin_deflection_max", "margin
 
 
 def load_index(df, env: Envelope) -> np.ndarray:
-    """The envelope load (index into env.loads) of each row of a per-load table."""
+    """The envelope load (index into env.loads) of each row of a per-load table (-1: none), on
+    whole columns: each column's values numbered (np.unique), the numbers of a row combined into
+    one, and only the distinct combinations looked up."""
     lookup = {k: i for i, k in enumerate(env.loads)}
-    cols = [df[n_].to_numpy() for n_ in env.names]
-    return np.array([lookup.get(tuple(_norm(c[r]) for c in cols), -1) for r in range(len(df))], dtype=np.int64)
+    code, levels = np.zeros(len(df), dtype=np.int64), []
+    for name in env.names:
+        values, inverse = np.unique(df[name].to_numpy(), return_inverse=True)
+        code = code * len(values) + inverse.ravel()
+        levels.append(values)
+    present, inverse = np.unique(code, return_inverse=True)
+    found = np.empty(len(present), dtype=np.int64)
+    for k, c in enumerate(present.tolist()):
+        picks = []
+        for values in reversed(levels):
+            c, r = divmod(c, len(values))
+            picks.append(_norm(values[r]))
+        found[k] = lookup.get(tuple(reversed(picks)), -1)
+    return found[inverse.ravel()]
 
 
 def _norm(x):
