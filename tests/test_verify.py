@@ -319,9 +319,31 @@ def test_random_rows_are_a_uniform_draw_not_the_cheap_ones(monkeypatch):
     steps = rng.uniform(100, 10000, plan.n_models)  # costs that vary 100-fold
     crit = {name: np.full(plan.n_models, np.inf) for name, _ in VS.EXTREMES["cycle"]}
     crit["highest peak_force"] = -rng.uniform(size=plan.n_models)
-    monkeypatch.setattr(VS, "scores", lambda plan, work, tables=None: (crit, steps))
-    sample = VS.choose(plan, None)
+    monkeypatch.setattr(VS.Scores, "result", lambda self, tables: (crit, steps))
+    sample = VS.choose(plan, "no chunks are read")
     perm = VS._random_rows(plan, int(sp.hash[:16], 16))
     assert len(sample.random_rows) >= 1 and sample.random_rows == perm[:len(sample.random_rows)].tolist()
     assert {int(plan.row_model[r]) for r in sample.random_rows} <= set(sample.models)
     assert sorted(perm.tolist()) == list(range(800))
+
+
+def test_scores_added_chunk_by_chunk_in_any_order_equal_the_whole_tables(tmp_path, monkeypatch):
+    """sample.Scores: a sweep scores each chunk as it arrives (in whatever order the workers end
+    them); the scores are those of all the chunks read at once."""
+    from fencesweep.study.sweep.chunks import ChunkTables
+
+    kept = []
+    monkeypatch.setattr(sweep.shutil, "rmtree", lambda path: kept.append(path))  # keep the chunks
+    res = run(tmp_path, jobs=1)
+    plan = PL.make_plan(load_spec(SPEC))
+    work = next(p for p in kept[0].iterdir() if p.is_dir())
+    plan.chunk_size = json.loads((work / "plan.json").read_text())["chunk_size"]
+    assert plan.n_chunks == res.n_chunks > 1
+    whole = VS.scores(plan, work)
+    scored, tables = VS.Scores(plan), ChunkTables(plan, work)
+    for c in np.random.default_rng(1).permutation(plan.n_chunks):
+        scored.add(int(c), tables)
+        scored.add(int(c), tables)  # a chunk added twice counts once
+    crit, steps = scored.result(tables)
+    assert np.array_equal(steps, whole[1]) and steps.sum() > 0
+    assert all(np.array_equal(crit[k], whole[0][k]) for k in whole[0])

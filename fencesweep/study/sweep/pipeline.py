@@ -60,6 +60,7 @@ from fencesweep.study.store import lock
 from fencesweep.study.store import table as store
 from fencesweep.study.sweep import cluster, compute, output, parts, runs
 from fencesweep.study.sweep import plan as PL
+from fencesweep.study.sweep import sample as VS
 from fencesweep.study.sweep import verify as V
 from fencesweep.study.sweep.assemble import Assembly
 from fencesweep.study.sweep.chunks import ChunkTables
@@ -104,7 +105,7 @@ class _Run:
     timed: dict = field(default_factory=dict)  # {model run: seconds} of the timed sample
     record: dict | None = None  # the verification's record, once made
     verify: bool | int | None = None  # run_sweep's `verify`
-    early: tuple | None = None  # (rows, results) of the verification's re-runs begun with the chunks
+    ahead: V.Ahead | None = None  # what the verification began while the chunks ran
 
 
 #: the default log: the "fencesweep" logger (api.py)
@@ -209,12 +210,12 @@ def _run(run: _Run, plan: PL.Plan, root: Path, verify: bool | int | None, t0: fl
 
 def _verification(run: _Run, plan: PL.Plan, verify: bool | int | None, pool, tables: ChunkTables) -> Callable:
     """Begin the verification (verify.begin: its re-runs go to `pool`, the local workers, if any,
-    those begun with the chunks, run.early, aside) and return the function that finishes it, for
+    those begun with the chunks, run.ahead, aside) and return the function that finishes it, for
     the assembly to call once it has written the table's blocks: {"verify": record}, also kept
     as run.record. Its seconds go to run.timings["verify"]."""
     t = time.perf_counter()
     finish = V.begin(plan, run.work, None if verify is None or verify is True else int(verify), run.jobs, run.local,
-                     run.scheduler, run.simulate, run.serial_below, run.per_run, pool, tables, run.early)
+                     run.scheduler, run.simulate, run.serial_below, run.per_run, pool, tables, run.ahead)
     run.timings["verify"] = time.perf_counter() - t
 
     def meta() -> dict:
@@ -288,13 +289,21 @@ def _compute(run: _Run, plan: PL.Plan, pending: list, done: list, workers: conte
         pending = runs.dispatch_order(plan, pending, run.timed, run.jobs)
     t = time.perf_counter()
     pool = compute.start_pool(workers, run.jobs, run.spec, run.simulate) if run.local and run.jobs > 1 else None
-    if pool is not None and run.verify is not False:  # the sample's likely random rows, beside the chunks
+    run.ahead = V.Ahead(scored=VS.Scores(plan)) if run.verify is not False else None
+    if pool is not None and run.ahead is not None:  # the sample's likely random rows, beside the chunks
         rows = V.early_rows(plan, None if run.verify is None or run.verify is True else int(run.verify))
-        run.early = (set(rows), compute.submit_reruns(pool, rows, V.STEP_FACTOR_SCALE, run.jobs))
+        run.ahead.rows, run.ahead.results = set(rows), compute.submit_reruns(pool, rows, V.STEP_FACTOR_SCALE,
+                                                                             run.jobs)
         threading.Thread(target=V.prepare, name="fencesweep-prepare", daemon=True).start()  # this process waits
+
+    def finished(c: int) -> None:  # chunk c is written: read it, write the blocks it completes, score it
+        tables.finished(c)
+        table.feed(c)
+        if run.ahead is not None:
+            run.ahead.scored.add(c, tables)
+
     stats = compute.compute_chunks(plan, run.spec, run.work, pending, done, run.jobs, run.local, run.scheduler,
-                                   run.progress, run.simulate, {"salt": plan.salt}, pool,
-                                   lambda c: (tables.finished(c), table.feed(c)))
+                                   run.progress, run.simulate, {"salt": plan.salt}, pool, finished)
     run.timings["compute"] = time.perf_counter() - t
     run.timings.update(compute.worker_timings(stats))
     return pool

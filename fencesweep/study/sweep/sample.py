@@ -120,33 +120,50 @@ def _columns(scene: str) -> list:
     return sorted({c for _, names in EXTREMES[kind(scene)] for c in names})
 
 
-def scores(plan: PL.Plan, work, tables: ChunkTables | None = None) -> tuple:
-    """({criterion: score per model run}, the table's steps per model run), read from the chunks
-    (`tables`: those the sweep read as they finished, sweep/chunks.py)."""
-    scene, n = plan.spec.scene, plan.n_models
-    names = _columns(scene)
-    out = {name: np.full(n, np.inf) for name, _ in EXTREMES[kind(scene)]}
-    steps = np.zeros(n)
-    dalpha = dalpha_perm(plan) if kind(scene) == "cycle" else None
-    tables = tables_of(plan, work, tables)
-    for c in range(plan.n_chunks):
-        table = tables.read(c, names + ["_model"])
-        cols, owner = _cycles(table, names)
+class Scores:
+    """The extremes' scores of a plan's runs (scores), added chunk by chunk: a sweep adds each
+    chunk as it arrives, while its workers run the others (sweep/pipeline.py)."""
+
+    def __init__(self, plan: PL.Plan):
+        self.plan = plan
+        self.names = _columns(plan.spec.scene)
+        self.crit = {name: np.full(plan.n_models, np.inf) for name, _ in EXTREMES[kind(plan.spec.scene)]}
+        self.steps = np.zeros(plan.n_models)
+        self.dalpha = dalpha_perm(plan) if kind(plan.spec.scene) == "cycle" else None
+        self.added: set = set()
+
+    def add(self, c: int, tables: ChunkTables) -> None:
+        """Score chunk `c`'s runs (once)."""
+        if c in self.added:
+            return
+        self.added.add(c)
+        table = tables.read(c, self.names + ["_model"])
+        cols, owner = _cycles(table, self.names)
         model = store.numpy_column(table.column("_model"))[owner]
-        runs = plan.chunk_models(c)  # the chunk's runs: scores go to out[...][runs], run by run
-        local, k = model - runs.start, len(runs)
-        per = _cycle_scores(cols, dalpha[model]) if dalpha is not None else _impact_scores(cols)
+        runs = self.plan.chunk_models(c)  # the chunk's runs: scores go to crit[...][runs], run by run
+        local, k, at = model - runs.start, len(runs), slice(runs.start, runs.stop)
+        per = _cycle_scores(cols, self.dalpha[model]) if self.dalpha is not None else _impact_scores(cols)
         for name, score in per.items():
             best = np.full(k, np.inf)
             np.minimum.at(best, local, np.where(np.isnan(score), np.inf, score))
-            out[name][runs.start:runs.stop] = np.minimum(out[name][runs.start:runs.stop], best)
+            self.crit[name][at] = np.minimum(self.crit[name][at], best)
         for name, col in zip(STEPS, ("n_steps", "n_rejected")):
             if col in cols:
                 total = np.bincount(local, weights=np.nan_to_num(cols[col]), minlength=k)
-                out[name][runs.start:runs.stop] = np.minimum(out[name][runs.start:runs.stop],
-                                                             np.where(total > 0, -total, np.inf))
-        steps[runs.start:runs.stop] += np.bincount(local, weights=np.nan_to_num(cols["n_steps"]), minlength=k)
-    return out, steps
+                self.crit[name][at] = np.minimum(self.crit[name][at], np.where(total > 0, -total, np.inf))
+        self.steps[at] += np.bincount(local, weights=np.nan_to_num(cols["n_steps"]), minlength=k)
+
+    def result(self, tables: ChunkTables) -> tuple:
+        """({criterion: score per model run}, the table's steps per model run), every chunk added."""
+        for c in range(self.plan.n_chunks):
+            self.add(c, tables)
+        return self.crit, self.steps
+
+
+def scores(plan: PL.Plan, work, tables: ChunkTables | None = None) -> tuple:
+    """({criterion: score per model run}, the table's steps per model run), read from the chunks
+    (`tables`: those the sweep read as they finished, sweep/chunks.py)."""
+    return Scores(plan).result(tables_of(plan, work, tables))
 
 
 def dalpha_perm(plan: PL.Plan) -> np.ndarray:
@@ -154,10 +171,13 @@ def dalpha_perm(plan: PL.Plan) -> np.ndarray:
     return plan.columns().column("dalpha_perm", plan.first_row).astype(np.float64)
 
 
-def choose(plan: PL.Plan, work, n: int | None = None, tables: ChunkTables | None = None) -> Sample:
-    """The sample of a plan whose chunks are all in `work` (and `tables`, scores): `n` runs (None:
-    the default size, under the cost cap), the extremes first, then random (module docstring)."""
-    crit, steps = scores(plan, work, tables)
+def choose(plan: PL.Plan, work, n: int | None = None, tables: ChunkTables | None = None,
+           scored: Scores | None = None) -> Sample:
+    """The sample of a plan whose chunks are all in `work` (and `tables`, scores; `scored`: the
+    scores added so far): `n` runs (None: the default size, under the cost cap), the extremes
+    first, then random (module docstring)."""
+    tables = tables_of(plan, work, tables)
+    crit, steps = (scored or Scores(plan)).result(tables)
     target = default_size(plan.n_models) if n is None else min(int(n), plan.n_models)
     order, extremes = _extremes(crit, target)
     cost = np.maximum(steps, 1.0)

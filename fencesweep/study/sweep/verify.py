@@ -31,6 +31,7 @@ from __future__ import annotations
 import math
 import time
 import warnings
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
@@ -80,40 +81,54 @@ def early_rows(plan: PL.Plan, n: int | None = None) -> list:
     return list(dict.fromkeys(int(r) for r in plan.first_row[plan.row_model[rows]]))
 
 
+@dataclass
+class Ahead:
+    """What a sweep does for its verification while its chunks run (sweep/pipeline.py): the re-runs
+    of early_rows begun on its workers (`rows`, and `results`, the function that gives them) and
+    the extremes' scores added as the chunks arrive (`scored`)."""
+
+    rows: set = field(default_factory=set)
+    results: Callable[[], dict] = dict
+    scored: VS.Scores | None = None
+
+
 def begin(plan: PL.Plan, work: Path, n: int | None = None, jobs: int = 1, local: bool = True,
           scheduler: str | None = None, simulate: Callable | None = None, serial_below: float | None = None,
           per_run: float | None = None, pool=None, tables: ChunkTables | None = None,
-          early: tuple | None = None) -> Callable[[], dict]:
+          ahead: Ahead | None = None) -> Callable[[], dict]:
     """Start verifying a plan whose chunks are all in `work` (`tables`: as the sweep read them,
     sweep/chunks.py): choose the sample and, given `pool` (the sweep's workers, still running), submit
     its re-runs to it. Returns the function that finishes: it re-runs the sample unless the
     pool does (on `jobs` local processes, in this one when the work is small, or on Dask), reads
     the table's values, compares, and gives the record. Meanwhile the caller may work: a sweep
-    writes its table's last blocks while the workers re-run (sweep/pipeline.py). `early`: (rows,
-    the function that gives their re-runs), re-runs submitted to `pool` beforehand (early_rows):
-    only the sample's other rows are submitted now."""
+    writes its table's last blocks while the workers re-run (sweep/pipeline.py). `ahead`: what
+    the sweep began with its chunks (Ahead): only the sample's rows not re-run yet are
+    submitted now, and the re-runs done are compared while the others run."""
+    ahead = ahead or Ahead()
     tables = tables_of(plan, work, tables)
-    sample = VS.choose(plan, work, n, tables)
+    sample = VS.choose(plan, work, n, tables, ahead.scored)
     spec = plan.spec
     rows = [int(plan.first_row[m]) for m in sample.models]
     if pool is not None:
-        done, early_results = early if early is not None else (set(), dict)
-        later = compute.submit_reruns(pool, [r for r in rows if r not in done], STEP_FACTOR_SCALE, jobs)
-
-        def rerun_results() -> dict:
-            return early_results() | later()
+        first, rest = ahead.results, compute.submit_reruns(pool, [r for r in rows if r not in ahead.rows],
+                                                           STEP_FACTOR_SCALE, jobs)
     else:
-        def rerun_results() -> dict:
+        def rest() -> dict:
             use = runs.local_jobs(jobs, (per_run or 1e-3) * VS.RERUN_COST * len(rows), serial_below) \
                 if local and jobs > 1 else jobs
             return compute.rerun_scenes(spec, rows, STEP_FACTOR_SCALE, use, local, scheduler, simulate)
+        first = dict
 
     def finish() -> dict:
         table = _table_values(plan, tables, sample.models)
         vals = [spec.resolve(i) for i in rows]
-        reruns = rerun_results()
-        found = [_compare(spec.scene, table[m], reruns[i], _freefall(v, table[m]))
-                 for m, i, v in zip(sample.models, rows, vals)]
+        found: dict = {}
+        for reruns in (first(), None):  # the re-runs done already, then the others once they are
+            reruns = rest() if reruns is None else reruns
+            for m, i, v in zip(sample.models, rows, vals):
+                if i in reruns and i not in found:
+                    found[i] = _compare(spec.scene, table[m], reruns[i], _freefall(v, table[m]))
+        found = [found[i] for i in rows]
         return _record(plan, sample, rows, vals, found) | {"random": _random_part(plan, sample, found)}
 
     return finish
