@@ -46,7 +46,7 @@ print(json.dumps({"seconds": run["seconds"], "timings": run["timings"], "scenes"
                   "peak_mib": peak, "package": fencesweep.__file__}))
 """
 WARM = "import fencesweep; fencesweep.simulate(case='small_far'); fencesweep.simulate(scene='impact')"
-PHASES = ("load", "plan", "warm_up", "verify", "assemble", "tail")
+PHASES = ("load", "plan", "warm_up", "verify", "assemble", "tail", "runs")
 
 
 def default_jobs() -> list:
