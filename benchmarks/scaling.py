@@ -8,8 +8,9 @@ Each run is `fencesweep grid SPEC --jobs J` through the Python API (`run_grid`, 
 in a fresh process with a warm Numba cache, writing to a temporary folder, with its verification
 (as a user runs it). From the run's own record: wall seconds of the sweep, the compute phase
 (`timings["compute"]`, the chunks on the workers), the rest ("outside": planning, loading the
-kernels, the verification, the assembly, the tail), each phase, and the process's peak memory
-(its own, not the workers'); and the whole command's wall time (the process from its start, its
+kernels, the verification, the assembly, the tail), each phase, the workers' seconds running
+chunks summed over the chunks (`runs`: the same work in every tree), and the process's peak
+memory (its own, not the workers'); and the whole command's wall time (the process from its start, its
 imports included: what a user waits for). Cycles per second: the spec's scenes / the sweep's
 seconds. The speed-up is against the 2-job run of the same tree (the bar: 16 jobs >= 6x of 2 jobs
 on a 16-core machine), and for the command against its 1-job run. With --before REV the same
