@@ -154,10 +154,38 @@ def test_free_axes_resolve_once_per_core_combination():
     spec = load_spec(_SPECS["envelope_like"])
     scenes = Scenes(spec)
     assert [spec.axes[d - 1].where for d in scenes.free] == ["grid.B2", "grid.K2"]
-    scenes.slots(scenes.decode(np.arange(spec.n_scenes)))
-    assert len(scenes.vals) == len(spec.cases) * 3  # cases x loads
+    slots, local = scenes.slots(scenes.decode(np.arange(spec.n_scenes)))
+    assert len(slots) == len(spec.cases) * 3 and local.max() == len(slots) - 1  # cases x loads
 
 
 def test_psi_makes_b2_a_core_axis():
     scenes = Scenes(load_spec(_SPECS["psi"]))
     assert scenes.free == ()
+
+
+@pytest.mark.parametrize("name", sorted(_SPECS))
+def test_resolved_on_columns_equals_resolve(name):
+    """What the workers run: Scenes.resolved(rows) is spec.resolve of each row, key for key."""
+    spec = load_spec(_SPECS[name])
+    rows = np.flatnonzero(_scalar_plan(spec)[0] >= 0)[::-1]
+    assert Scenes(spec).resolved(rows) == [spec.resolve(int(i)) for i in rows]
+
+
+def test_an_all_core_spec_holds_a_bounded_number_of_slots(monkeypatch):
+    """A spec whose every scene is its own slot (every axis enters a combination check) is planned
+    as scene by scene, and no more than HELD slots are kept resolved."""
+    from fencesweep.study.spec import scenes as SC
+
+    monkeypatch.setattr(SC, "HELD", 7)
+    monkeypatch.setattr(PL, "PLAN_BLOCK", 5)
+    spec = load_spec("""
+        grid: {t_c: [1.2, 1.36, 1.5], L: [0.2, 0.4, 0.7], dP: [0, 0.3, 0.62]}
+        invalid: skip
+    """)
+    scenes = Scenes(spec)
+    assert scenes.free == () and scenes.free_size == 1
+    row_model, first_row, skipped, _ = _scalar_plan(spec)
+    plan = PL.make_plan(spec)
+    assert np.array_equal(plan.row_model, row_model) and np.array_equal(plan.first_row, first_row)
+    assert plan.skipped == skipped > 0
+    assert len(plan.columns()._held) <= 7

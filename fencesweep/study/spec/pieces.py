@@ -19,9 +19,9 @@ from fencesweep import resources
 from fencesweep.study.spec import spec as S
 from fencesweep.study.spec.axes import Axis
 
-#: memory per scene at the peak of planning (sweep/plan.py make_plan: its index along each
-#: dimension, its slot, its run code, np.unique's sort of them, the map scene -> run), with a
-#: margin over the ~110 bytes measured (benchmarks/scale_memory.py)
+#: memory per scene at the peak of planning (sweep/plan.py make_plan: its key digest, free
+#: values and validity, then np.unique's sorts of them and the map scene -> run), with a margin
+#: over what benchmarks/scale_memory.py measures
 PLAN_BYTES_PER_SCENE = 160
 
 #: The most scenes one piece of a sweep holds: planning it takes ~0.8 GB at the peak, and its

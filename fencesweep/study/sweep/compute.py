@@ -27,6 +27,7 @@ from typing import Callable, Iterable, Iterator
 import numpy as np
 
 from fencesweep.study.spec import spec as S
+from fencesweep.study.spec.scenes import Scenes
 from fencesweep.study.store import table as store
 from fencesweep.study.sweep import plan as PL
 from fencesweep.study.sweep import cluster, runs
@@ -54,12 +55,25 @@ def _run_chunk(c: int, ids: range, rows: np.ndarray, path: str | None, meta: dic
     on the time.monotonic clock."""
     t0 = time.monotonic()
     spec, simulate = shared or _SHARED
-    results = runs.run_models(spec.scene, [spec.resolve(int(i)) for i in rows], simulate)
+    results = runs.run_models(spec.scene, _resolved(spec, rows), simulate)
     t1 = time.monotonic()
     if path is None:
         return c, results, (os.getpid(), t0, t1, t1)
     store.write_chunk(path, spec.scene, list(ids), results, meta)
     return c, None, (os.getpid(), t0, t1, time.monotonic())
+
+
+#: (spec, its Scenes) of the last spec whose scenes this process resolved (_resolved)
+_SCENES: tuple = (None, None)
+
+
+def _resolved(spec: S.Spec, rows) -> list:
+    """spec.resolve of each scene of `rows`, on whole columns (spec/scenes.py: resolve runs once
+    per combination of core values, which this process keeps for the sweep's next chunks)."""
+    global _SCENES
+    if _SCENES[0] is not spec:
+        _SCENES = (spec, Scenes(spec))
+    return _SCENES[1].resolved(rows)
 
 
 def _init_worker(shared: tuple | None, parent: int) -> None:
@@ -222,8 +236,7 @@ def _rerun(rows: list, step_factor_scale: float, shared: tuple | None = None) ->
     their parameters unchanged): [(row, results)], a stream's as one chunk row (store.stream_row)."""
     spec, simulate = shared or _SHARED
     out = []
-    for i in rows:
-        vals = spec.resolve(int(i))
+    for i, vals in zip(rows, _resolved(spec, rows)):
         vals = dict(vals, step_factor=float(vals["step_factor"]) * step_factor_scale)
         out.append((int(i), runs.run_one(spec.scene, vals, simulate)))
     return out

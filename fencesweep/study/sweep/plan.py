@@ -87,52 +87,62 @@ def plan_salt(spec: S.Spec) -> str:
     return hashlib.sha256(f"{spec.hash}:{v['fencesweep']}:{v['source_hash']}".encode()).hexdigest()
 
 
+#: scenes keyed at once while planning (Scenes.keys): the slots of a block are held resolved
+PLAN_BLOCK = 65_536
+
+
 def make_plan(spec: S.Spec) -> Plan:
     """Resolve every scene (raising SpecError on the first bad one) and deduplicate the runs, on
-    whole columns (spec/scenes.py): params.resolve runs once per combination of the values it
-    reads together, and a scene's model run is numbered from its slot's model key and the free
-    axes' values that key uses.
+    whole columns (spec/scenes.py), block by block: params.resolve runs once per combination of
+    the values it reads together, and a scene's model run is found from its slot's key digest and
+    the free axes' values that key uses.
 
-    Memory: about pieces.PLAN_BYTES_PER_SCENE at the peak (the scenes' indices along each
-    dimension, their run codes and np.unique's sort of them), then 8 bytes (its model number)
-    plus 8 per distinct run; no Python object per scene.
+    Memory: about pieces.PLAN_BYTES_PER_SCENE at the peak (16 bytes of key digest, 8 of free
+    values and a validity byte per scene, then np.unique's sorts of them), then 8 bytes (its
+    model number) plus 8 per distinct run; no Python object per scene.
     """
     n = spec.n_scenes
     scenes = Scenes(spec)
-    idx = scenes.decode(np.arange(n, dtype=np.int64))
-    slot = scenes.slots(idx)
-    valid = scenes.valid(slot)
+    valid = np.empty(n, dtype=bool)
+    digest = np.empty(n, dtype="V16")
+    free = np.empty(n, dtype=np.int64)
+    firsts: dict = {}  # (scene, drive, contact_law, profile) -> its first scene
+    for start in range(0, n, PLAN_BLOCK):
+        stop = min(n, start + PLAN_BLOCK)
+        valid[start:stop], digest[start:stop], free[start:stop], met = scenes.keys(np.arange(start, stop))
+        for key, row in met.items():
+            firsts.setdefault(key, row)
     rows = np.flatnonzero(valid)
-    skipped, examples = n - len(rows), []
-    if skipped:
-        bad = np.flatnonzero(~valid)
-        examples = [f"{spec.describe(int(i))}: {scenes.errors[slot[i]]}" for i in bad[:3]]
-        if spec.invalid != "skip":
-            raise S.SpecError(examples[0])
-        if skipped == n:
-            raise S.SpecError(f"every one of the {n} scenes is invalid (invalid: skip); e.g. {examples[0]}")
-        idx, slot = tuple(a[rows] for a in idx), slot[rows]
-    codes = scenes.run_codes(idx, slot)
-    del idx
-    _, first, inverse = np.unique(codes, return_index=True, return_inverse=True)
-    del codes
+    skipped, examples = n - len(rows), _examples(spec, valid)
+    if skipped and spec.invalid != "skip":
+        raise S.SpecError(examples[0])
+    if skipped == n:
+        raise S.SpecError(f"every one of the {n} scenes is invalid (invalid: skip); e.g. {examples[0]}")
+    _, key_id = np.unique(digest[rows] if skipped else digest, return_inverse=True)
+    del digest
+    code = key_id.ravel().astype(np.int64) * scenes.free_size + (free[rows] if skipped else free)
+    del key_id, free
+    _, first, inverse = np.unique(code, return_index=True, return_inverse=True)
+    del code
     order = np.argsort(first, kind="stable")  # model runs numbered in order of first appearance
     rank = np.empty_like(order)
     rank[order] = np.arange(len(order))
     row_model = np.full(n, -1, dtype=np.int64)
     row_model[rows] = rank[inverse.ravel()]
     first_row = rows[first[order]].astype(np.int64)
-    return Plan(spec, row_model, first_row, spec.chunk_size, _variants(scenes, slot, rows, row_model),
-                int(skipped), examples[:3] if skipped else [], plan_salt(spec), scenes)
+    variants = {key: int(row_model[row]) for key, row in firsts.items()}
+    return Plan(spec, row_model, first_row, spec.chunk_size, variants, int(skipped), examples, plan_salt(spec),
+                scenes)
 
 
-def _variants(scenes: Scenes, slot: np.ndarray, rows: np.ndarray, row_model: np.ndarray) -> dict:
-    """(scene, drive, contact_law, profile) -> the model run of the first scene with it."""
-    slots, first = np.unique(slot, return_index=True)
-    out: dict = {}
-    for k in np.argsort(first, kind="stable"):
-        vals = scenes.vals[int(slots[k])]
-        out.setdefault((scenes.spec.scene,) + tuple(vals[c] for c in _CHOICES), int(row_model[rows[first[k]]]))
+def _examples(spec: S.Spec, valid: np.ndarray) -> list:
+    """The first three invalid scenes, each with why (resolved again: an invalid one raises)."""
+    out = []
+    for i in np.flatnonzero(~valid)[:3].tolist():
+        try:
+            spec.resolve(i)
+        except P.ParameterError as exc:
+            out.append(f"{spec.describe(i)}: {exc}")
     return out
 
 
