@@ -134,7 +134,7 @@ def run_sweep(spec: S.Spec, out: str | Path | None = None, jobs: int | None = No
     out = Path(out) if out is not None else output.default_output(spec)
     output.check_writable(out)
     output.check_can_start(spec, out, overwrite)  # refused at once: not even the lock file is made
-    if plan is None and SP.n_pieces(spec) > 1:
+    if plan is None and spec.whole is None and SP.n_pieces(spec) > 1:  # (a piece is never cut again)
         return _run_pieces(spec, out, t0, wait, overwrite, log or _quiet, dict(
             jobs=jobs, resume=resume, backend=backend, scheduler=scheduler, progress=progress, simulate=simulate,
             serial_below=serial_below, verify=verify))
