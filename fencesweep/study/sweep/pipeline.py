@@ -287,13 +287,15 @@ def _compute(run: _Run, plan: PL.Plan, pending: list, done: list, workers: conte
             run.jobs = 1
     if run.jobs > 1 or not run.local:  # in one process the order changes nothing
         pending = runs.dispatch_order(plan, pending, run.timed, run.jobs)
-    t = time.perf_counter()
-    pool = compute.start_pool(workers, run.jobs, run.spec, run.simulate) if run.local and run.jobs > 1 else None
     run.ahead = V.Ahead(scored=VS.Scores(plan)) if run.verify is not False else None
-    if pool is not None and run.ahead is not None:  # the sample's likely random rows, beside the chunks
-        rows = V.early_rows(plan, None if run.verify is None or run.verify is True else int(run.verify))
-        run.ahead.rows, run.ahead.results = set(rows), compute.submit_reruns(pool, rows, V.STEP_FACTOR_SCALE,
-                                                                             run.jobs)
+    local_pool = run.local and run.jobs > 1
+    early = V.early_rows(plan, None if run.verify is None or run.verify is True else int(run.verify)) \
+        if local_pool and run.ahead is not None else []  # the sample's likely random rows, beside the chunks
+    t = time.perf_counter()
+    pool = compute.start_pool(workers, run.jobs, run.spec, run.simulate) if local_pool else None
+    if pool is not None and run.ahead is not None:
+        run.ahead.rows, run.ahead.results = set(early), compute.submit_reruns(pool, early, V.STEP_FACTOR_SCALE,
+                                                                              run.jobs)
         threading.Thread(target=V.prepare, name="fencesweep-prepare", daemon=True).start()  # this process waits
 
     def finished(c: int) -> None:  # chunk c is written: read it, write the blocks it completes, score it
