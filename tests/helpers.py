@@ -42,6 +42,43 @@ GRID_SPEC = """
 """
 
 
+#: a design of 2 generations of 4 points over 4 loads, compared with the paper's element and a
+#: rigid fence (the real engine: a few seconds)
+DESIGN_SPEC = """
+    params: {drive: flexible}
+    envelope:
+      L: [0.2, 0.7]
+      m1: [5, 15]
+      A: 0.1
+      dP: across
+      seed: 1
+    design:
+      variables:
+        B2: {min: 10, max: 200}
+        K2: {min: 500, max: 2100}
+      optimizer: {seed: 2, maxiter: 2, popsize: 2, refine: 4}
+      verify: {sobol: 4, seed: 9}
+      compare:
+        paper: {B2: 72, K2: 570}
+        rigid: {drive: rigid}
+    """
+
+#: Saltelli's n = 4 over two inputs, each point over two loads
+SENSITIVITY_SPEC = """
+    params: {drive: flexible, B2: 140, K2: 2075}
+    envelope:
+      L: [0.2, 0.7]
+      A: 0.1
+      dP: across
+      seed: 1
+    sensitivity:
+      inputs:
+        k1: {min: 2.0e6, max: 8.0e6}
+        mu2: {min: 0.15, max: 0.35}
+      n: 4
+      seed: 3
+    """
+
 def load_spec(text: str = SWEEP_SPEC):
     """The Spec of an indented YAML text (a spec above, or one of a test file)."""
     return specfile.loads(textwrap.dedent(text))

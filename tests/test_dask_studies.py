@@ -8,7 +8,7 @@ import textwrap
 import pandas as pd
 import pytest
 import yaml
-from helpers import fake_engine
+from helpers import DESIGN_SPEC, SENSITIVITY_SPEC, fake_engine
 from helpers import load_spec as spec
 
 import fencesweep
@@ -23,40 +23,7 @@ from fencesweep.study.sweep import plan as PL
 
 distributed = pytest.importorskip("distributed")
 
-#: a design of 2 generations of 4 points over 4 loads (the real engine: about 2 s)
-DESIGN = """
-    params: {drive: flexible}
-    envelope:
-      L: [0.2, 0.7]
-      m1: [5, 15]
-      A: 0.1
-      dP: across
-      seed: 1
-    design:
-      variables:
-        B2: {min: 10, max: 200}
-        K2: {min: 500, max: 2100}
-      optimizer: {seed: 2, maxiter: 2, popsize: 2, refine: 4}
-      verify: {sobol: 4, seed: 9}
-      compare:
-        paper: {B2: 72, K2: 570}
-    """
-
-#: Saltelli's n = 4 over two inputs, each point over two loads
-SENSITIVITY = """
-    params: {drive: flexible, B2: 140, K2: 2075}
-    envelope:
-      L: [0.2, 0.7]
-      A: 0.1
-      dP: across
-      seed: 1
-    sensitivity:
-      inputs:
-        k1: {min: 2.0e6, max: 8.0e6}
-        mu2: {min: 0.15, max: 0.35}
-      n: 4
-      seed: 3
-    """
+DESIGN, SENSITIVITY = DESIGN_SPEC, SENSITIVITY_SPEC
 
 #: a worker's preload that makes fencesweep impossible to import there, as on a machine without it
 NO_FENCESWEEP = """

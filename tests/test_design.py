@@ -11,25 +11,9 @@ from fencesweep.study.spec import design as design_section
 from fencesweep.study.spec import spec as S
 from fencesweep.study.spec import file as specfile
 from fencesweep.cli import main
+from helpers import DESIGN_SPEC
 
-TINY = """
-    params: {drive: flexible}
-    envelope:
-      L: [0.2, 0.7]
-      m1: [5, 15]
-      A: 0.1
-      dP: across
-      seed: 1
-    design:
-      variables:
-        B2: {min: 10, max: 200}
-        K2: {min: 500, max: 2100}
-      optimizer: {seed: 2, maxiter: 2, popsize: 2, refine: 4}
-      verify: {sobol: 4, seed: 9}
-      compare:
-        paper: {B2: 72, K2: 570}
-        rigid: {drive: rigid}
-    """
+TINY = DESIGN_SPEC
 
 
 def load(text: str) -> S.Spec:

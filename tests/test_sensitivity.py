@@ -7,21 +7,9 @@ import pytest
 from fencesweep.study.spec import spec as S
 
 from fencesweep.study.spec import file as specfile
+from helpers import SENSITIVITY_SPEC
 
-SA_SPEC = """
-    params: {drive: flexible, B2: 140, K2: 2075}
-    envelope:
-      L: [0.2, 0.7]
-      A: 0.1
-      dP: across
-      seed: 1
-    sensitivity:
-      inputs:
-        k1: {min: 2.0e6, max: 8.0e6}
-        mu2: {min: 0.15, max: 0.35}
-      n: 4
-      seed: 3
-    """
+SA_SPEC = SENSITIVITY_SPEC
 
 
 def load(text):
