@@ -11,6 +11,7 @@ import pytest
 
 from fencesweep.model import params as P
 from fencesweep.study.spec import spec as S
+from fencesweep.study.spec import scenes as SC
 from fencesweep.study.spec.scenes import Scenes
 from fencesweep.study.store import table as store
 from fencesweep.study.store.columns import numpy_column
@@ -122,7 +123,7 @@ def test_plan_on_columns_equals_planning_scene_by_scene(name):
     assert plan.skipped == skipped
     for key, m in plan.variants.items():  # each variant's first scene
         first = next(i for i in range(spec.n_scenes) if row_model[i] >= 0 and
-                     (spec.scene,) + tuple(spec.resolve(i)[c] for c in PL._CHOICES) == key)
+                     (spec.scene,) + tuple(spec.resolve(i)[c] for c in SC._CHOICES) == key)
         assert m == row_model[first]
 
 
@@ -174,8 +175,6 @@ def test_resolved_on_columns_equals_resolve(name):
 def test_an_all_core_spec_holds_a_bounded_number_of_slots(monkeypatch):
     """A spec whose every scene is its own slot (every axis enters a combination check) is planned
     as scene by scene, and no more than HELD slots are kept resolved."""
-    from fencesweep.study.spec import scenes as SC
-
     monkeypatch.setattr(SC, "HELD", 7)
     monkeypatch.setattr(PL, "PLAN_BLOCK", 5)
     spec = load_spec("""

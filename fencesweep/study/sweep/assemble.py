@@ -65,6 +65,7 @@ class Assembly:
         self.starts = list(range(0, plan.n_scenes, PL.ASSEMBLY_BLOCK))
         self._arrived: set = set()
         self._next = 0  # the next block to write
+        self._waiting: set | None = None  # the chunks it needs (None: not found yet)
         self._writer = None
         self._cache: OrderedDict = OrderedDict()
         self.failed = 0  # rows whose run raised (status 'failed: exception ...'), in the blocks written
@@ -78,9 +79,13 @@ class Assembly:
         """Chunk `c` is written (None: nothing new): write the blocks now complete, in order."""
         if c is not None:
             self._arrived.add(int(c))
-        while self._next < len(self.starts) and self._arrived.issuperset(self._needs(self._next).tolist()):
+        while self._next < len(self.starts):
+            if self._waiting is None:  # the chunks the next block needs, found once per block
+                self._waiting = set(self._needs(self._next).tolist())
+            if not self._arrived.issuperset(self._waiting):
+                return
             self._write(self._next)
-            self._next += 1
+            self._next, self._waiting = self._next + 1, None
 
     def finish(self, meta: dict | Callable[[], dict] | None = None) -> int:
         """Write the blocks left (every chunk is in the work directory by now), add `meta` to the

@@ -26,7 +26,6 @@ from fencesweep.study.spec.scenes import Scenes
 from fencesweep.study.store import table as store
 
 ASSEMBLY_BLOCK = 16_384  # rows per Parquet row group of the final table
-_CHOICES = tuple(p.name for p in P.TABLE if p.kind == "choice")
 
 
 @dataclass
