@@ -61,7 +61,9 @@ def drive_angle(t, p):
 
     crank_rocker reads the table of beta(theta) - beta0, beta', beta'' over one crank turn
     that follows the header of p (fill_rocker_table): cubic Hermite interpolation of beta
-    with beta' and of beta' with beta'' (error ~1e-12 rad at 2048 intervals).
+    with beta' and of beta' with beta'' (error ~1e-12 rad at 2048 intervals). A p without the
+    table (TAB_N = 0: a GPU thread's, which would otherwise carry its own 49 KB copy) solves the
+    four-bar at theta0 + omega_c t instead (rocker_offset), from the geometry in its header.
     """
     tc = p[Lp.TC]
     if t <= 0.0 or t >= tc:
@@ -71,6 +73,9 @@ def drive_angle(t, p):
         half = 0.5 * p[Lp.SWING]
         return half * (1.0 - math.cos(om * t)), half * om * math.sin(om * t)
     n = int(p[Lp.TAB_N])
+    if n == 0:
+        aw, db = rocker_offset(p[Lp.CR_TH0] + om * t, p[Lp.CR_A], p[Lp.CR_B], p[Lp.CR_D], p[Lp.CR_B0])
+        return aw, db * om
     u = t * p[Lp.TAB_RATE]
     i = int(u)
     if i >= n:
@@ -86,6 +91,20 @@ def drive_angle(t, p):
     return aw, db * om
 
 
+@kernel()
+def rocker_offset(theta, a, b, d, beta0):
+    """alpha_w = beta(theta) - beta0 and d beta / d theta at crank angle theta (docs/model.md (2.6)
+    with (2.2)-(2.4)): beta is unwrapped, the swing being below pi, so the difference lies in
+    (-pi, pi]."""
+    beta, dbeta = rocker_angle(theta, a, b, d)
+    x = beta - beta0
+    if x > math.pi:
+        x -= 2.0 * math.pi
+    elif x <= -math.pi:
+        x += 2.0 * math.pi
+    return x, dbeta
+
+
 @entry()
 def fill_rocker_table(a, b, d, theta0, beta0, out):
     """Tabulate beta(theta) - beta0, beta', beta'' at theta0 + 2 pi i / n, i = 0..n
@@ -94,15 +113,7 @@ def fill_rocker_table(a, b, d, theta0, beta0, out):
     dl = 1e-5
     for i in range(n + 1):
         th = theta0 + 2.0 * math.pi * i / n
-        beta, dbeta = rocker_angle(th, a, b, d)
-        x = beta - beta0
-        # unwrap: the swing is below pi, so the difference lies in (-pi, pi]
-        if x > math.pi:
-            x -= 2.0 * math.pi
-        elif x <= -math.pi:
-            x += 2.0 * math.pi
-        out[i] = x
-        out[n + 1 + i] = dbeta
+        out[i], out[n + 1 + i] = rocker_offset(th, a, b, d, beta0)
         out[2 * (n + 1) + i] = (rocker_angle(th + dl, a, b, d)[1] - rocker_angle(th - dl, a, b, d)[1]) / (2.0 * dl)
 
 

@@ -15,7 +15,7 @@ from fencesweep.model import layout as Lp
 from fencesweep.kernel import numerics as NU
 from fencesweep.model.calibrate import damping_coefficient, peak_force_factor
 from fencesweep.model.contact import derived_k_lin, drop_speed, mean_footprint_radius, wall_force_scale
-from fencesweep.model.drive import TABLE_SIZE, max_drive_rate, rocker_table
+from fencesweep.model.drive import TABLE_SIZE, crank_rocker_geometry, max_drive_rate, rocker_table
 from fencesweep.kernel.rk import METHOD_DOPRI5, METHOD_RK4
 
 _LAW = {"hertz": Lp.LAW_HERTZ, "linear": Lp.LAW_LINEAR}
@@ -56,8 +56,10 @@ def _contact_part(vals: dict) -> np.ndarray:
     return p
 
 
-def prepare(vals: dict) -> np.ndarray:
-    """Fill the kernel parameter vector from a resolved parameter dict (params.resolve)."""
+def prepare(vals: dict, table: bool = True) -> np.ndarray:
+    """Fill the kernel parameter vector from a resolved parameter dict (params.resolve); without
+    `table`, the crank-rocker's header only (TAB_N = 0: drive.drive_angle solves the four-bar),
+    N_P entries, as a GPU thread takes it."""
     p = _contact_part(vals)
     for name, idx in (("v", Lp.V), ("P_max", Lp.PMAX), ("mu2", Lp.MU2), ("L", Lp.LL),
                       ("A", Lp.AA), ("dP", Lp.DP), ("R_s", Lp.RS), ("phi0", Lp.PHI0), ("l", Lp.FL),
@@ -78,10 +80,13 @@ def prepare(vals: dict) -> np.ndarray:
     p[Lp.OMEGA_C] = 2.0 * math.pi / float(vals["t_c"])
     p[Lp.TAB_H] = 1.0
     if vals["profile"] == "crank_rocker":
-        p[Lp.TAB_N] = TABLE_SIZE
-        p[Lp.TAB_RATE] = TABLE_SIZE / float(vals["t_c"])
-        p[Lp.TAB_H] = 2.0 * math.pi / TABLE_SIZE
-        return np.concatenate((p, rocker_table(float(vals["swing"]), float(vals["coupler_ratio"]))))
+        swing, ratio = float(vals["swing"]), float(vals["coupler_ratio"])
+        p[Lp.CR_A], p[Lp.CR_B], p[Lp.CR_D], p[Lp.CR_TH0], p[Lp.CR_B0] = crank_rocker_geometry(swing, ratio)
+        if table:
+            p[Lp.TAB_N] = TABLE_SIZE
+            p[Lp.TAB_RATE] = TABLE_SIZE / float(vals["t_c"])
+            p[Lp.TAB_H] = 2.0 * math.pi / TABLE_SIZE
+            return np.concatenate((p, rocker_table(swing, ratio)))
     return p
 
 
