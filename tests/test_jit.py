@@ -31,7 +31,7 @@ from fencesweep.model.contact import kelvin_force
 
 ENTRY_POINTS = {"run_cycles", "impact_kernel", "fill_rocker_table"}
 #: kernel functions that allocate an entry point's work arrays (kernel(allocates=True))
-ALLOCATORS = {"new_work"}
+ALLOCATORS = {"run_on_heap"}
 
 
 def _dispatchers():

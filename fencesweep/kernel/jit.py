@@ -56,6 +56,7 @@ import types as pytypes
 
 from fencesweep.kernel.numba_setup import numba  # first: Numba loaded without what it does not need
 import llvmlite.binding as llvm
+import numpy as np
 from numba import njit, types
 from numba.core import caching
 from numba.core import typed_passes as tp, untyped_passes as up
@@ -255,15 +256,31 @@ def entry(**options):
     return compiled
 
 
-def specialise(template, name: str, **bindings):
-    """A kernel function compiled from the plain function `template` with the global names in
-    `bindings` bound to other kernel functions (module docstring). `name` names it in the cache
-    and in profiles (it must be unique in the package)."""
+#: where a template allocates on the CPU: HEAP.local.array(shape, dtype) is np.empty. A GPU
+#: thread's copy of the template binds numba.cuda itself, whose local.array (the thread's local
+#: memory) takes the same arguments (kernel/cuda.py; scenes/stream.py cycles_with_work)
+HEAP = pytypes.ModuleType("fencesweep.kernel.jit.HEAP")
+HEAP.local = pytypes.ModuleType("fencesweep.kernel.jit.HEAP.local")
+HEAP.local.array = np.empty
+
+
+def bind(template, name: str, **bindings):
+    """The plain function `template` with the global names in `bindings` bound (to kernel
+    functions, or to how a target allocates), named `name`: a copy of its code with its own
+    globals, which a decorator then compiles (specialise; scenes/stream.py run_on_heap; a GPU
+    thread's device functions, kernel/cuda.py)."""
     fn = pytypes.FunctionType(template.__code__, {**template.__globals__, **bindings}, name,
                               template.__defaults__, template.__closure__)
     fn.__qualname__ = name
     fn.__doc__ = template.__doc__
-    return kernel()(fn)
+    return fn
+
+
+def specialise(template, name: str, **bindings):
+    """A kernel function compiled from the plain function `template` with the global names in
+    `bindings` bound to other kernel functions (module docstring). `name` names it in the cache
+    and in profiles (it must be unique in the package)."""
+    return kernel()(bind(template, name, **bindings))
 
 
 @functools.lru_cache(maxsize=None)
@@ -275,4 +292,4 @@ def python_callable(fn):
     return njit(_nrt=False)(fn.py_func)
 
 
-__all__ = ["kernel", "entry", "specialise", "python_callable", "own_compile", "cache", "JIT_DISABLED"]
+__all__ = ["kernel", "entry", "HEAP", "bind", "specialise", "python_callable", "own_compile", "cache", "JIT_DISABLED"]

@@ -26,15 +26,17 @@ import numpy as np
 from fencesweep.kernel import driver
 from fencesweep.kernel import numerics as NU
 from fencesweep.kernel import rk
-from fencesweep.kernel.jit import entry, kernel
+from fencesweep.kernel.jit import HEAP, bind, entry, kernel
 from fencesweep.model import layout as Lp
 from fencesweep.model import results as Rs
 from fencesweep.model.scenes.contacts import N_SLOTS
 from fencesweep.model.scenes.cycle.books import (apply_contact_change, drop_load, finish, record, start,
                                                  swing_amplitude, sync_touch, time_out)
 from fencesweep.model.scenes.cycle.layout import (A_EXITED, A_QMAX, A_STATUS, A_T_EXIT, IW_EDGE, IW_MODE, IW_RIDE,
-                                                  N_ACC, N_AUX, N_IW, N_Q, N_QV, N_STATE, N_TRAJ, Q_NF, QV_0,
-                                                  Work)
+                                                  N_ACC, N_AUX, N_DENSE, N_IW, N_Q, N_QV, N_RISING, N_STATE, N_TRAJ,
+                                                  Q_NF, QV_0, Work)
+from fencesweep.kernel.driver import N_COUNT
+from fencesweep.kernel.rk import N_STAGES
 from fencesweep.model.scenes.cycle.peaks import quantities_from_aux
 from fencesweep.model.scenes.cycle.rhs import deflection, fence_state, rhs, step
 from fencesweep.model.scenes.cycle.run import run, set_tolerance
@@ -165,17 +167,72 @@ def cycle_in_stream(p, w, loads, period, k, out, row_starts):
     return ok
 
 
-@kernel(allocates=True)
-def new_work(p, traj):
-    """The work arrays of a run (layout.Work) on the parameters p and the trajectory buffer traj
-    (Python calls new_work.py_func for arrays of the same types)."""
-    n = N_STATE
-    return Work(np.zeros(n), np.empty(n), np.empty(n), np.empty(n), np.empty((rk.N_STAGES, n)), np.zeros((8, n)),
-                np.zeros(1, np.int64), np.zeros(N_AUX), np.zeros(N_AUX), np.zeros(N_IW, np.int64),
-                np.zeros(N_SLOTS, np.int64), np.zeros(N_SLOTS, np.int64), np.empty(N_SLOTS), np.empty(N_SLOTS),
-                np.empty(N_SLOTS), np.empty(N_SLOTS), np.zeros((N_QV, N_Q)), np.empty(N_ACC), np.empty(n),
-                np.empty(n), np.empty(1), np.ones(N_Q + 1), np.empty((rk.N_STAGES, n)), np.empty(n),
-                np.zeros(driver.N_COUNT), traj, np.zeros(1, np.int64), p.copy())
+@kernel(inline=True)
+def fill_rows(a, value):
+    """Every entry of the 2-D array a set to value."""
+    for i in range(a.shape[0]):
+        for j in range(a.shape[1]):
+            a[i, j] = value
+
+
+@kernel()
+def clear_work(p, w):
+    """A run's work arrays at their start: counts, flags, state and tracked quantities 0, every
+    quantity to be judged rising (peaks.track_maxima), pk a copy of p; the rest is written
+    before it is read."""
+    for a in (w.y, w.aux, w.auxs, w.count):
+        for i in range(a.shape[0]):
+            a[i] = 0.0
+    for b in (w.qok, w.iw, w.codes1, w.tags1, w.row):
+        for i in range(b.shape[0]):
+            b[i] = 0
+    fill_rows(w.Q, 0.0)
+    fill_rows(w.qv, 0.0)
+    for i in range(w.rising.shape[0]):
+        w.rising[i] = 1.0
+    for i in range(w.pk.shape[0]):
+        w.pk[i] = p[i]
+
+
+@kernel()
+def cycles(p, w, loads, period, out, row_starts):
+    """The cycles of run_cycles (its docstring) on the work arrays w (clear_work)."""
+    n_cycles = loads.shape[0]
+    for k in range(n_cycles):
+        if not cycle_in_stream(p, w, loads, period, k, out, row_starts):
+            not_run(out, k + 1)
+            for j in range(k + 1, n_cycles):
+                row_starts[j] = w.row[0]
+            break
+    row_starts[n_cycles] = w.row[0]
+    return w.row[0]
+
+
+#: where `cycles_with_work` allocates a run's work arrays, MEM.local.array(shape, dtype): jit.HEAP's
+#: (np.empty) on the CPU (run_on_heap), numba.cuda's (the thread's local memory) in a GPU thread
+#: (model/scenes/gpu.py); the shapes are compile-time constants, as cuda.local.array needs
+MEM = None
+F8, I8 = np.float64, np.int64
+
+
+def cycles_with_work(p, loads, period, out, traj, row_starts, pk):
+    """run_cycles (its docstring) with the work arrays (layout.Work) allocated here in MEM (a
+    template: the one list of the work arrays' shapes, for both targets) and pk, the cycle's
+    parameters, given (a copy of p's length)."""
+    w = Work(MEM.local.array(N_STATE, F8), MEM.local.array(N_STATE, F8), MEM.local.array(N_STATE, F8), MEM.local.array(N_STATE, F8),
+             MEM.local.array((N_STAGES, N_STATE), F8), MEM.local.array((N_DENSE, N_STATE), F8), MEM.local.array(1, I8),
+             MEM.local.array(N_AUX, F8), MEM.local.array(N_AUX, F8), MEM.local.array(N_IW, I8), MEM.local.array(N_SLOTS, I8),
+             MEM.local.array(N_SLOTS, I8), MEM.local.array(N_SLOTS, F8), MEM.local.array(N_SLOTS, F8),
+             MEM.local.array(N_SLOTS, F8), MEM.local.array(N_SLOTS, F8), MEM.local.array((N_QV, N_Q), F8),
+             MEM.local.array(N_ACC, F8), MEM.local.array(N_STATE, F8), MEM.local.array(N_STATE, F8), MEM.local.array(1, F8),
+             MEM.local.array(N_RISING, F8), MEM.local.array((N_STAGES, N_STATE), F8), MEM.local.array(N_STATE, F8),
+             MEM.local.array(N_COUNT, F8), traj, MEM.local.array(1, I8), pk)
+    clear_work(p, w)
+    return cycles(p, w, loads, period, out, row_starts)
+
+
+#: `cycles_with_work` on the CPU: its work arrays on the heap (kernel/jit.py: a kernel function that allocates)
+run_on_heap = kernel(allocates=True)(bind(cycles_with_work, "run_on_heap", MEM=HEAP))
 
 
 def compile_plan():
@@ -194,17 +251,20 @@ def compile_plan():
 
     p = np.zeros(Lp.N_P)
     traj = np.empty((0, N_TRAJ))
-    w = new_work.py_func(p, traj) if hasattr(new_work, "py_func") else new_work(p, traj)
     t = 0.0
     loads, out = np.zeros((1, Lp.N_LOAD)), np.zeros((1, Rs.N_STREAM_CYCLE_RESULTS))
+    starts = np.zeros(2, np.int64)
+    # the work arrays as cycles_with_work allocates them: its own code, in Python, returning them
+    w = bind(cycles_with_work, "work_arrays", MEM=HEAP, clear_work=lambda p, w: None,
+             cycles=lambda p, w, *rest: w)(p, loads, t, out, traj, starts, p.copy())
     o = out[0]  # a cycle's row of results, as cycle_in_stream passes it
-    entry = (run_cycles, (p, loads, t, out, traj, np.zeros(2, np.int64)))
+    entry = (run_cycles, (p, loads, t, out, traj, starts))
     kernels = [(rhs, (t, w.y, p, w.iw, w.K[0], w.aux)), (begin_cycle, (p, w)), (events.find_event, (p, w, t, t, False)),
                (events.event_state, (p, w, t, t, t, 0)), (peaks.track_maxima, (p, w, t, t, t)),
                (cycle.move_on, (p, w, t, 0, 0, t)), (cycle.check_state, (p, w)), (end_cycle, (p, w, False, o)),
                (rest, (p, w, t, t, o)), (start_results, (p, w, o)), (peaks.record_peaks, (p, w, t, t, t)),
                (time_out, (t, w)), (cycle_params, (p, loads[0], t, False, p)), (shift_times, (traj, 0, 0, 0, t)),
-               (not_run, (out, 0)), (new_work, (p, traj))]
+               (not_run, (out, 0))]
     return Plan(entry, kernels, prepare)
 
 
@@ -214,14 +274,5 @@ def run_cycles(p, loads, period, out, traj, row_starts):
     the scene `cycle`), load k's parameters in loads[k] (layout.LOAD_SLOTS); write row k of out
     (STREAM_CYCLE_RESULTS) and the time series into traj (rows of TRAJ_COLUMNS, as many as
     fit), the first row of cycle k into row_starts[k] (row_starts[n]: the count). Returns the
-    number of rows produced. The only place the cycle's work arrays are allocated."""
-    w = new_work(p, traj)
-    n_cycles = loads.shape[0]
-    for k in range(n_cycles):
-        if not cycle_in_stream(p, w, loads, period, k, out, row_starts):
-            not_run(out, k + 1)
-            for j in range(k + 1, n_cycles):
-                row_starts[j] = w.row[0]
-            break
-    row_starts[n_cycles] = w.row[0]
-    return w.row[0]
+    number of rows produced. Its work arrays are allocated once, by run_on_heap."""
+    return run_on_heap(p, loads, period, out, traj, row_starts, p.copy())

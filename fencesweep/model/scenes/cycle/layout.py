@@ -39,6 +39,8 @@ AX_NF, AX_NR, AX_TAU, AX_DMAX, AX_FX, AX_FY, AX_TQ, AX_PDISS, AX_PFRIC = 0, 1, 2
 AX_CA, AX_SA, AX_DAL, AX_CPHI, AX_SPHI, AX_FRAME, N_AUX = 9, 10, 11, 12, 13, 14, 15
 # tracked maxima (docs/model.md §11)
 Q_NF, Q_NR, Q_DEFL, Q_ALPHA, N_Q = 0, 1, 2, 3, 4
+N_RISING = N_Q + 1  # Work.rising: one per quantity and one more (a shape: a constant, not an expression)
+N_DENSE = 8  # rows of Work.Q
 # rows of Work.qv: the quantities at the step's start and end, two samples inside it, a scratch
 # row, where the step's maxima lie and the quantities' rates over the last step (peaks.track_maxima)
 QV_0, QV_1, QV_A, QV_B, QV_S, QV_THETA, QV_RATE, N_QV = 0, 1, 2, 3, 4, 5, 6, 7
@@ -56,7 +58,7 @@ N_TRAJ = len(TRAJ_COLUMNS)
  A_E_CONTACT, A_RESID, A_RESID_AMP, A_E_DAMPER, A_EXITED, A_QMAX, A_STAGE, A_TOUCH, A_ONSET, N_ACC) = (
     0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 14 + N_Q, 14 + N_Q + 5, 14 + N_Q + 6, 14 + N_Q + 7)
 
-#: a run's work arrays (allocated by stream.run_cycles)
+#: a run's work arrays (allocated by stream.run, the one list of their shapes)
 Work = namedtuple("Work", (
     "y",       # (N_STATE,) the state at the step's start
     "y1",      # (N_STATE,) the state at its end (or at the event that ends it)
