@@ -36,6 +36,10 @@ class SensitivityError(ParameterError):
     """A bad `sensitivity:` section of a spec: names the key, the value and what is allowed."""
 
 
+class GpuUnavailable(UsageError):
+    """The GPU path cannot run here: numba-cuda is not installed, or no GPU is there (exit code 2)."""
+
+
 class WriteError(OSError):
     """Writing `filename` failed: `errno` ENOSPC (no space left on device), EACCES, EROFS, ...
 

@@ -47,7 +47,7 @@ KERNEL_PACKAGE = "kernel"
 #: or that one of these imports from the package, is listed.
 MODEL_SOURCES = (
     "model/calibrate.py", "model/contact.py", "model/drive.py", "model/layout.py", "model/results.py",
-    "model/scenes/contacts.py", "model/scenes/impact.py", "model/scenes/load.py", "model/scenes/stream.py",
+    "model/scenes/contacts.py", "model/scenes/gpu.py", "model/scenes/impact.py", "model/scenes/load.py", "model/scenes/stream.py",
     "model/scenes/cycle/books.py", "model/scenes/cycle/events.py", "model/scenes/cycle/layout.py",
     "model/scenes/cycle/peaks.py", "model/scenes/cycle/rhs.py", "model/scenes/cycle/run.py",
     "model/scenes/cycle/slots.py",
