@@ -152,7 +152,7 @@ def add_grid_parser(sub) -> argparse.ArgumentParser:
     g.add_argument("--no-resume", action="store_true", help="discard chunks of an interrupted run")
     g.add_argument("--overwrite", action="store_true",
                    help="replace a table (or discard the unfinished run) that another spec left at the output")
-    add_backend_args(g)
+    add_backend_args(g, gpu=True)
     check = g.add_mutually_exclusive_group()
     check.add_argument("--verify", type=int, default=None, metavar="N",
                        help="re-run N of the runs at a 10x tighter tolerance and record how the table differs "
@@ -168,10 +168,13 @@ def add_grid_parser(sub) -> argparse.ArgumentParser:
     return g
 
 
-def add_backend_args(parser: argparse.ArgumentParser) -> None:
-    """--backend and --scheduler (grid, design, sensitivity; checked by _check_backend_args)."""
-    parser.add_argument("--backend", choices=("loky", "dask"), default="loky",
-                        help="loky: processes on this machine; dask: a Dask cluster (needs --scheduler)")
+def add_backend_args(parser: argparse.ArgumentParser, gpu: bool = False) -> None:
+    """--backend and --scheduler (grid, design, sensitivity; checked by _check_backend_args); with
+    `gpu` (grid) also --backend cuda."""
+    parser.add_argument("--backend", choices=("loky", "dask", "cuda") if gpu else ("loky", "dask"), default="loky",
+                        help="loky: processes on this machine; dask: a Dask cluster (needs --scheduler)"
+                             + ("; cuda: one GPU thread per cycle (cycle scenes; pip install -e \".[gpu]\")"
+                                if gpu else ""))
     parser.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler, e.g. tcp://HOST:8786")
 
 
@@ -235,6 +238,8 @@ def cmd_grid(args: argparse.Namespace) -> int:
         est = api.estimate(args.spec, out=args.out, jobs=args.jobs, resume=not args.no_resume, backend=args.backend,
                            overwrite=args.overwrite, progress=not args.quiet, verify=verify, log=say)
         print("\n".join(est.lines()))
+        if args.backend == "cuda":
+            print("--backend cuda: the times above are this machine's CPU's; the GPU's are not estimated")
         if args.adaptive:
             print("--adaptive runs a part of these, known only as the map refines (sweeps/README.md, Adaptive maps): "
                   "the estimate above is the full grid's, an upper bound")
@@ -462,6 +467,9 @@ def build_parser() -> argparse.ArgumentParser:
     add_sensitivity_parser(sub)
     add_plot_design_parser(sub)
     add_plot_parser(sub)
+    from fencesweep.gpuinfo import add_gpu_info_parser
+
+    add_gpu_info_parser(sub)
     return ap
 
 

@@ -44,7 +44,7 @@ from fencesweep.study.sweep.progress import wanted as progress_wanted
 __all__ = ["grid", "run_grid", "points", "estimate", "design", "sensitivity", "load_spec", "SweepInterrupted",
            "SweepWriteError"]
 
-BACKENDS = ("loky", "dask")
+BACKENDS = ("loky", "dask", "cuda")
 
 
 
@@ -88,14 +88,16 @@ def _check_out(out: Any) -> None:
         raise UsageError(f"out = {str(out)!r} must end with .parquet")
 
 
-def _check_backend_name(backend: str) -> None:
-    if backend not in BACKENDS:
-        raise UsageError(f"backend = {backend!r} is not allowed: 'loky' (processes on this machine) or 'dask' "
-                         f"(a Dask cluster, at scheduler = ADDRESS)")
+def _check_backend_name(backend: str, gpu: bool = True) -> None:
+    allowed = BACKENDS if gpu else BACKENDS[:2]
+    if backend not in allowed:
+        raise UsageError(f"backend = {backend!r} is not allowed: 'loky' (processes on this machine), 'dask' "
+                         f"(a Dask cluster, at scheduler = ADDRESS)" + (" or 'cuda' (a GPU of this machine, "
+                                                                        "grid only)" if gpu else ""))
 
 
-def _check_backend(backend: str, scheduler: str | None) -> None:
-    _check_backend_name(backend)
+def _check_backend(backend: str, scheduler: str | None, gpu: bool = True) -> None:
+    _check_backend_name(backend, gpu)
     if backend == "dask" and not scheduler:
         raise UsageError("backend = 'dask' needs scheduler = ADDRESS (e.g. 'tcp://HOST:8786')")
     if scheduler and backend != "dask":
@@ -172,8 +174,13 @@ def run_grid(spec: Any, *, out: str | Path | None = None, jobs: int | None = Non
     _check_backend(backend, scheduler)
     _check_verify(verify)
     sp = load_spec(spec)
+    if backend == "cuda" and adaptive:
+        raise UsageError("adaptive = True runs on the CPU only (backend 'loky' or 'dask'): the GPU path does not "
+                         "run an adaptive map's levels yet")
     if adaptive:
         return _run_adaptive(sp, out, jobs, resume, backend, scheduler, progress, overwrite, verify, wait, log)
+    if backend == "cuda":
+        sweep.gpu_device(sp)  # refused before anything is made: no numba-cuda, no GPU, another scene
     out = _out(sp, out)
     _note_skipped_loads(sp, log)
     with _saying_what_is_saved(lambda: output.saved_chunks(sp, out)):
@@ -292,7 +299,7 @@ def design(spec: Any, *, out: str | Path | None = None, jobs: int = 1, progress:
     log = log or _nothing
     progress = progress_wanted(progress)
     _check_jobs(jobs, none_ok=False)
-    _check_backend(backend, scheduler)
+    _check_backend(backend, scheduler, gpu=False)
     sp = load_spec(spec)
     if sp.design is None:
         raise UsageError(f"{sp.path or 'the spec'} has no design: section (variables, constraints, objective); see "
@@ -311,7 +318,7 @@ def sensitivity(spec: Any, *, out: str | Path | None = None, jobs: int | None = 
 
     _check_jobs(jobs)
     _check_out(out)
-    _check_backend(backend, scheduler)
+    _check_backend(backend, scheduler, gpu=False)
     sp = load_spec(spec)
     if sp.sensitivity is None:
         raise UsageError(f"{sp.path or 'the spec'} has no sensitivity: section; see sweeps/sensitivity.yaml")

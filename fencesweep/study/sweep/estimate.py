@@ -188,7 +188,7 @@ def estimate(spec: S.Spec, out: Path, jobs: int, resume: bool = True, backend: s
     done = output.chunks_done(plan, work) if resume else []
     est.chunks_done = len(done)
     est.runs_left = plan.n_models - sum(len(plan.chunk_models(c)) for c in done)
-    est.jobs = runs.local_jobs(jobs, per_run * est.runs_left) if backend == "loky" else None
+    est.jobs = runs.local_jobs(jobs, per_run * est.runs_left) if backend != "dask" else None
     est.seconds = per_run * est.runs_left / (est.jobs or 1) + (t_warm if compiled else 0.0)
     if verify is not False:
         requested = verify is not None and verify is not True

@@ -106,6 +106,7 @@ class _Run:
     record: dict | None = None  # the verification's record, once made
     verify: bool | int | None = None  # run_sweep's `verify`
     ahead: V.Ahead | None = None  # what the verification began while the chunks ran
+    gpu: dict | None = None  # backend "cuda": the GPU (sweep/gpu.py device_record); None: the CPU
 
 
 #: the default log: the "fencesweep" logger (api.py)
@@ -134,6 +135,7 @@ def run_sweep(spec: S.Spec, out: str | Path | None = None, jobs: int | None = No
     out = Path(out) if out is not None else output.default_output(spec)
     output.check_writable(out)
     output.check_can_start(spec, out, overwrite)  # refused at once: not even the lock file is made
+    gpu = gpu_device(spec) if backend == "cuda" else None  # refused before anything is made
     if plan is None and spec.whole is None and SP.n_pieces(spec) > 1:  # (a piece is never cut again)
         return _run_pieces(spec, out, t0, wait, overwrite, log or _quiet, dict(
             jobs=jobs, resume=resume, backend=backend, scheduler=scheduler, progress=progress, simulate=simulate,
@@ -146,11 +148,21 @@ def run_sweep(spec: S.Spec, out: str | Path | None = None, jobs: int | None = No
             jobs = joblib.cpu_count()
         root = output.work_root(out)
         run = _Run(spec, out, root / (plan.salt if plan is not None else PL.plan_salt(spec))[:16], jobs,
-                   backend == "loky", scheduler, progress, simulate, log or _quiet, serial_below)
+                   backend != "dask", scheduler, progress, simulate, log or _quiet, serial_below, gpu=gpu)
         made = output.open_work(root, run.work, resume, run.log)
         if plan is None:
             plan = _plan(run, made)
         return _run(run, plan, root, verify, t0)
+
+
+def gpu_device(spec: S.Spec) -> dict:
+    """Backend "cuda": the GPU's record (sweep/gpu.py), or the reason it cannot run `spec` (a
+    usage error: numba-cuda missing, no GPU, a scene other than cycle)."""
+    from fencesweep.kernel import cuda
+    from fencesweep.study.sweep import gpu
+
+    gpu.check_scene(spec)
+    return gpu.device_record(cuda.require_gpu())
 
 
 def _run_pieces(spec: S.Spec, out: Path, t0: float, wait: bool, overwrite: bool, log: Callable[[str], None],
@@ -200,12 +212,19 @@ def _run(run: _Run, plan: PL.Plan, root: Path, verify: bool | int | None, t0: fl
             table.feed(c)
         pool = _compute(run, plan, pending, done, workers, tables, table) if pending else None
         meta = _verification(run, plan, verify, pool, tables) if verify is not False else None
+        if run.gpu is not None:  # the table names the GPU its chunks ran on
+            meta = _with_device(meta, run.gpu)
         t, verifying = time.perf_counter(), run.timings.get("verify", 0.0)
         failed = table.finish(meta)
         run.timings["assemble"] = time.perf_counter() - t - (run.timings.get("verify", 0.0) - verifying)
     shutil.rmtree(root)
     return Outcome(run.out, plan.n_scenes - plan.skipped, plan.n_models, plan.n_chunks, len(pending), len(done),
                    time.perf_counter() - t0, failed, run.jobs if run.local else None, run.timings, run.record)
+
+
+def _with_device(meta: Callable | None, device: dict) -> Callable:
+    """The table's metadata to add (`meta`'s) with {"device": device}."""
+    return lambda: {**(meta() if meta is not None else {}), "device": device}
 
 
 def _verification(run: _Run, plan: PL.Plan, verify: bool | int | None, pool, tables: ChunkTables) -> Callable:
@@ -304,6 +323,13 @@ def _compute(run: _Run, plan: PL.Plan, pending: list, done: list, workers: conte
         if run.ahead is not None:
             run.ahead.scored.add(c, tables)
 
+    if run.gpu is not None:
+        from fencesweep.study.sweep import gpu
+
+        run.timings.update(gpu.compute_chunks(plan, run.spec, run.work, pending, done, gpu.runner(), run.progress,
+                                              {"salt": plan.salt}, pool, finished))
+        run.timings["compute"] = time.perf_counter() - t
+        return pool
     stats = compute.compute_chunks(plan, run.spec, run.work, pending, done, run.jobs, run.local, run.scheduler,
                                    run.progress, run.simulate, {"salt": plan.salt}, pool, finished)
     run.timings["compute"] = time.perf_counter() - t
