@@ -216,3 +216,30 @@ def test_backend_cuda_on_the_simulator_writes_the_cpus_table(tmp_path):
     assert meta["device"]["backend"] == "cuda" and "simulator" in meta["device"]["name"]
     assert meta["verify"]["ok"] is True  # re-run on the CPU at tol / 10
     assert "device" not in store.read_metadata(cpu)
+
+
+def test_a_chunk_written_from_columns_is_the_chunk_written_from_rows():
+    """The GPU path writes its chunks from whole result columns (results.unpack_columns,
+    store.columns_table): the same table as the CPU's rows of result dicts, failed rows included."""
+    from fencesweep.model.results import CYCLE_RESULTS, N_STREAM_CYCLE_RESULTS, OUTCOMES, STATUS_MESSAGES
+    from fencesweep.model.results import unpack_columns
+
+    names = [n for n, _, _ in CYCLE_RESULTS]
+    rng = np.random.default_rng(7)
+    out = rng.normal(size=(300, N_STREAM_CYCLE_RESULTS))
+    out[:, names.index("outcome")] = rng.integers(0, len(OUTCOMES) - 1, 300)
+    out[:, names.index("status")] = rng.integers(0, len(STATUS_MESSAGES), 300)
+    for n in ("n_impacts", "n_steps", "n_rejected"):
+        out[:, names.index(n)] = rng.integers(0, 5000, 300)
+    out[::5, names.index("safe")] = 0.0
+    out[::7, names.index("safe")] = np.nan
+    out[::3, names.index("overload")] = np.nan
+    rows = [unpack("cycle", o[:N_CYCLE_RESULTS]) for o in out]
+    cols = unpack_columns(CYCLE_RESULTS, out[:, :N_CYCLE_RESULTS])
+    rows[4] = store.failed_result("cycle", "failed: exception ValueError: x")
+    for name, value in rows[4].items():
+        cols[name][4] = value
+    a = store.results_table("cycle", rows, range(300)).to_pandas()
+    b = store.columns_table("cycle", cols, range(300)).to_pandas()
+    pd.testing.assert_frame_equal(a, b)
+    assert b["outcome"].iloc[4] == "failed" and np.isnan(b["peak_force"].iloc[4])

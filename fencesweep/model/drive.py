@@ -57,7 +57,7 @@ def hermite_basis(s, h):
 @kernel(inline=True)
 def drive_angle(t, p):
     """alpha_w(t) [rad] and its rate [rad/s] (docs/model.md (2.6), (2.7)); at rest for t < 0 and t > t_c
-    (2.8).
+    (2.8): (2.7) here, (2.6) from the table (15.11) or rocker_offset.
 
     crank_rocker reads the table of beta(theta) - beta0, beta', beta'' over one crank turn
     that follows the header of p (fill_rocker_table): cubic Hermite interpolation of beta

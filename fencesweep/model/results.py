@@ -131,22 +131,30 @@ def unpack(scene: str, vec: np.ndarray) -> dict:
     return out
 
 
+def unpack_columns(rows: tuple, out: np.ndarray) -> dict:
+    """Kernel output rows (one per run or cycle; `rows`: their layout, e.g. STREAM_CYCLE_RESULTS)
+    -> {name: NumPy column}, decoded as `unpack` decodes one (codes to names, NaN counts and flags
+    to 0 and False)."""
+    cols = {}
+    for i, (name, _, _) in enumerate(rows):
+        x = out[:, i]
+        finite = np.isfinite(x)
+        if name == "outcome":
+            cols[name] = np.array(OUTCOMES, dtype=object)[x.astype(np.int64)]
+        elif name == "status":
+            cols[name] = np.array(STATUS_MESSAGES, dtype=object)[x.astype(np.int64)]
+        elif name in _INT_RESULTS:
+            cols[name] = np.where(finite, x, 0.0).astype(np.int64)
+        elif name in _BOOL_RESULTS:
+            cols[name] = finite & (x != 0.0)
+        else:
+            cols[name] = x.copy()
+    return cols
+
+
 def unpack_cycles(out: np.ndarray) -> dict:
     """A stream kernel's rows (STREAM_CYCLE_RESULTS, one per cycle) -> {name: list}."""
-    cols = {}
-    for i, (name, _, _) in enumerate(STREAM_CYCLE_RESULTS):
-        x = out[:, i]
-        if name == "outcome":
-            cols[name] = [OUTCOMES[int(v)] for v in x]
-        elif name == "status":
-            cols[name] = [STATUS_MESSAGES[int(v)] for v in x]
-        elif name in _INT_RESULTS:
-            cols[name] = [int(v) if math.isfinite(v) else 0 for v in x]
-        elif name in _BOOL_RESULTS:
-            cols[name] = [bool(v) if math.isfinite(v) else False for v in x]
-        else:
-            cols[name] = x.tolist()
-    return cols
+    return {name: col.tolist() for name, col in unpack_columns(STREAM_CYCLE_RESULTS, out).items()}
 
 
 def stream_summary(cycles: dict, period: float) -> dict:

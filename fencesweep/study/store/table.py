@@ -227,6 +227,25 @@ def results_table(scene: str, rows: list, model_ids: Iterable[int] | None = None
     return table
 
 
+def columns_table(scene: str, cols: dict, model_ids: Iterable[int]) -> pa.Table:
+    """Result columns ({name: values}, exactly the keys of results.SCENE_RESULTS[scene]; e.g.
+    results.unpack_columns) -> the Arrow table results_table makes of the same rows."""
+    schema = result_schema(scene)
+    if set(cols) != set(schema.names):
+        raise ValueError(f"result columns of scene {scene!r}: missing {sorted(set(schema.names) - set(cols))} / "
+                         f"extra {sorted(set(cols) - set(schema.names))}")
+    arrays = [arrow_array(cols[n].tolist() if getattr(cols[n], "dtype", None) == object else cols[n],
+                          schema.field(n).type) for n in schema.names]
+    table = pa.Table.from_arrays(arrays, schema=schema)
+    return table.append_column("_model", arrow_array(list(model_ids), pa.int64()))
+
+
+def write_chunk_columns(path: str | Path, scene: str, model_ids: list, cols: dict, meta: dict) -> None:
+    """write_chunk of result columns (columns_table)."""
+    table = columns_table(scene, cols, model_ids).replace_schema_metadata(_meta_bytes(meta))
+    write_table_atomic(table, path, fsync=False)
+
+
 # ---------------------------------------------------------------------------- atomic files
 @contextlib.contextmanager
 def atomic_path(path: str | Path, fsync: bool = True):

@@ -93,14 +93,17 @@ def _prepare(c: int, rows: np.ndarray, shared: tuple | None = None) -> tuple:
 
 
 def _write(path: str, ids: list, out: np.ndarray, failed: dict, meta: dict, shared: tuple | None = None) -> float:
-    """Chunk `path`'s file from its runs' result rows; the seconds it took (`shared`: unused, as
-    every call on the workers takes it)."""
-    from fencesweep.model.results import N_CYCLE_RESULTS, unpack
+    """Chunk `path`'s file from its runs' result rows, decoded as whole columns, the runs that
+    could not be prepared as failed rows; the seconds it took (`shared`: unused, as every call on
+    the workers takes it)."""
+    from fencesweep.model.results import CYCLE_RESULTS, N_CYCLE_RESULTS, unpack_columns
 
     t = time.monotonic()
-    rows = [store.failed_result("cycle", failed[k]) if k in failed else unpack("cycle", out[k, :N_CYCLE_RESULTS])
-            for k in range(len(ids))]
-    store.write_chunk(path, "cycle", ids, rows, meta)
+    cols = unpack_columns(CYCLE_RESULTS, out[:, :N_CYCLE_RESULTS])
+    for k, reason in failed.items():
+        for name, value in store.failed_result("cycle", reason).items():
+            cols[name][k] = value
+    store.write_chunk_columns(path, "cycle", ids, cols, meta)
     return time.monotonic() - t
 
 
