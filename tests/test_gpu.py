@@ -4,11 +4,10 @@
   compiles to PTX for sm_80 and sm_90 (a typing error in any kernel function fails here);
 * on Numba's CUDA simulator (NUMBA_ENABLE_CUDASIM=1) `--backend cuda` writes the CPU's table: a
   scene of each named case, outcomes and step counts equal, values within 1e-6;
-* a GPU thread's parameter vector without the drive table (the four-bar solved instead) runs the
-  CPU's cycle;
+* a GPU thread's drive, the four-bar solved instead of the table read, is the CPU's;
+* the orchestration (batches, workers, adaptive levels) with the CPU standing in for the card;
 * the messages: no numba-cuda, no GPU, a scene the GPU does not run.
 """
-import math
 import os
 import subprocess
 import sys
@@ -34,37 +33,22 @@ SCENES = [("small_far", {}), ("long_near", {}), ("small_far", {"drive": "rigid"}
           ("long_near", {"B2": 15.0, "K2": 2075.0}), ("small_far", {"swing": 1.0, "coupler_ratio": 2.0})]
 
 
-def _cycle(p: np.ndarray) -> dict:
-    """One cycle of parameter vector p on the CPU, as model/simulate.py runs it."""
-    loads = np.ascontiguousarray(p[list(Lp.LOAD_SLOTS)][None, :])
-    out = np.empty((1, 40))
-    run_cycles(p, loads, float(p[Lp.TC]), out, np.empty((0, 19)), np.zeros(2, np.int64))
-    return unpack("cycle", out[0, :N_CYCLE_RESULTS])
-
-
 def test_the_four_bar_solved_gives_the_tables_drive():
-    """drive_angle without the table (TAB_N = 0) solves (2.2)-(2.6) at each time; the table
-    interpolates the same to ~1e-12 rad (docs/model.md (15.11))."""
-    vals = P.resolve("cycle", "small_far")
-    with_table, header = prepare(vals), prepare(vals, table=False)
-    assert len(header) == Lp.N_P and header[Lp.TAB_N] == 0 and with_table[Lp.TAB_N] > 0
-    angle = python_callable(drive.drive_angle)
-    for t in np.linspace(0.0, vals["t_c"], 997):
-        (a1, r1), (a2, r2) = angle(t, with_table), angle(t, header)
-        assert abs(a1 - a2) < 1e-10 and abs(r1 - r2) < 1e-8 * max(1.0, abs(r1))
+    """drive_angle compiled with DRIVE_TABLE False (a GPU thread's) solves (2.2)-(2.6) at each time
+    from p's header; the CPU's table interpolates the same to ~1e-12 rad (docs/model.md (15.11))."""
+    from numba import njit
 
+    from fencesweep.kernel.jit import bind
 
-@pytest.mark.parametrize("case,over", SCENES)
-def test_a_cycle_without_the_drive_table_is_the_cpus_cycle(case, over):
-    """A GPU thread's parameter vector (the header only) runs, on the CPU, the cycle of the full one."""
-    vals = P.resolve("cycle", case, **over)
-    a, b = _cycle(prepare(vals)), _cycle(prepare(vals, table=False))
-    for k, x in a.items():
-        if isinstance(x, float) and math.isfinite(x):
-            assert abs(x - b[k]) <= 1e-6 * max(1.0, abs(x)), k
-        elif k != "n_steps":
-            assert x == b[k] or (isinstance(x, float) and math.isnan(b[k])), k
-    assert abs(a["n_steps"] - b["n_steps"]) <= 2
+    solved = njit(_nrt=False)(bind(drive.drive_angle.py_func, "drive_angle_solved", DRIVE_TABLE=False))
+    table = python_callable(drive.drive_angle)
+    for case, over in SCENES:
+        vals = P.resolve("cycle", case, **over)
+        with_table, header = prepare(vals), prepare(vals, table=False)
+        assert len(header) == Lp.N_P and header[Lp.TAB_N] == 0 and with_table[Lp.TAB_N] > 0
+        for t in np.linspace(0.0, vals["t_c"], 997):
+            (a1, r1), (a2, r2) = table(t, with_table), solved(t, header)
+            assert abs(a1 - a2) < 1e-10 and abs(r1 - r2) < 1e-8 * max(1.0, abs(r1))
 
 
 # ------------------------------------------------------------------ PTX, without a GPU
@@ -83,6 +67,21 @@ def test_the_cycle_kernel_compiles_to_ptx_for_sm80_and_sm90(cycles, cc):
     assert f".target sm_{cc[0]}{cc[1]}" in ptx
     assert ".entry" in ptx and "cycle_threads" in ptx
     assert ".f64" in ptx  # the cycle runs in double precision
+
+
+def test_the_gpu_kernel_is_cached_under_the_kernel_sources_hash(cycles):
+    """numba-cuda's cache of the cycle kernel is kept in kernel/cache.py's directory, named by the
+    hash of the kernel sources (its own would be keyed by model/scenes/gpu.py alone)."""
+    from pathlib import Path
+
+    from fencesweep.kernel import cache
+
+    if os.environ.get("NUMBA_ENABLE_CUDASIM"):
+        pytest.skip("the simulator compiles nothing to cache")
+    path = Path(cycles.kernel._cache._cache_path)
+    assert path.is_relative_to(cache.DIR) and cache.HASH[:16] in str(path)
+    assert "model/scenes/gpu.py" in cache.MODEL_SOURCES or "model/scenes/gpu.py" in {
+        p.relative_to(cache.PKG).as_posix() for p in cache._kernel_sources()}
 
 
 def test_every_kernel_function_the_cycle_calls_is_a_device_function(cycles):
@@ -166,13 +165,11 @@ def test_backend_cuda_without_a_gpu_says_none_was_found(tmp_path):
     assert not list(tmp_path.iterdir())
 
 
-def test_backend_cuda_refuses_other_scenes_and_adaptive_maps(tmp_path):
+def test_backend_cuda_refuses_other_scenes_and_the_design_search(tmp_path):
     import fencesweep
 
     with pytest.raises(UsageError, match="'cuda' runs the scene 'cycle' only, not 'impact'"):
         fencesweep.grid("sweeps/impact_m2.yaml", out=tmp_path / "i.parquet", backend="cuda", progress=False)
-    with pytest.raises(UsageError, match="adaptive"):
-        fencesweep.grid("sweeps/envelope.yaml", out=tmp_path / "e.parquet", backend="cuda", adaptive=True)
     with pytest.raises(UsageError, match="backend = 'cuda' is not allowed"):
         fencesweep.design("sweeps/envelope.yaml", backend="cuda")
     assert not list(tmp_path.iterdir())
@@ -243,3 +240,93 @@ def test_a_chunk_written_from_columns_is_the_chunk_written_from_rows():
     b = store.columns_table("cycle", cols, range(300)).to_pandas()
     pd.testing.assert_frame_equal(a, b)
     assert b["outcome"].iloc[4] == "failed" and np.isnan(b["peak_force"].iloc[4])
+
+
+# ------------------------------------------------------------------ the orchestration, with the CPU as the card
+class CpuCard:
+    """A stand-in for the GPU that runs each row of P (a GPU thread's parameter vector) with the
+    CPU's kernel, its drive table put back: the GPU path's orchestration (batches, workers,
+    chunks, adaptive levels) checked at the CPU's speed."""
+
+    def __init__(self):
+        self.launches = []
+
+    def free_memory(self):
+        return None
+
+    def launch(self, P):
+        from fencesweep.model.results import N_STREAM_CYCLE_RESULTS
+
+        from fencesweep.model.prepare import with_drive_table
+
+        self.launches.append(P.shape[0])
+        out = np.empty((P.shape[0], N_STREAM_CYCLE_RESULTS))
+        for k, header in enumerate(P):
+            p = with_drive_table(header.copy()) if header[Lp.PROFILE] == Lp.PROFILE_CRANK_ROCKER else header
+            loads = np.ascontiguousarray(p[list(Lp.LOAD_SLOTS)][None, :])
+            run_cycles(np.ascontiguousarray(p), loads, float(p[Lp.TC]), out[k:k + 1], np.empty((0, 19)),
+                       np.zeros(2, np.int64))
+        card = self
+
+        class Done:
+            def result(self):
+                return out
+
+        card.last = Done()
+        return card.last
+
+
+@pytest.fixture
+def cpu_card(monkeypatch):
+    from fencesweep.study.sweep import gpu, pipeline
+
+    card = CpuCard()
+    monkeypatch.setattr(pipeline, "gpu_device", lambda spec: gpu.check_scene(spec) or {"backend": "cuda",
+                                                                                      "name": "the CPU, standing in"})
+    monkeypatch.setattr(gpu, "runner", lambda: card)
+    return card
+
+
+def _within(a: pd.DataFrame, b: pd.DataFrame) -> None:
+    """The tables agree as the GPU's must agree with the CPU's: outcomes, counts and labels equal,
+    values within 1e-6 (floored at 1), n_steps within a few."""
+    assert list(a.columns) == list(b.columns) and len(a) == len(b)
+    for c in a.columns:
+        if c == "n_steps":
+            assert (abs(a[c] - b[c]) <= 2).all()
+        elif a[c].dtype.kind == "f":
+            x, y = a[c].to_numpy(), b[c].to_numpy()
+            assert ((np.isnan(x) & np.isnan(y)) | (np.abs(x - y) <= 1e-6 * np.maximum(1.0, np.abs(x)))).all(), c
+        else:
+            assert a[c].reset_index(drop=True).equals(b[c].reset_index(drop=True)), c
+
+
+def test_a_sweep_in_batches_on_workers_writes_the_cpus_table(cpu_card, monkeypatch, tmp_path):
+    """Batches of at most 5 runs, the parameter vectors and the chunks made on 2 workers (and in
+    this process with 1 job): the CPU's table, and the same table either way."""
+    import fencesweep
+    from fencesweep.study.sweep import gpu
+
+    monkeypatch.setattr(gpu, "BATCH_RUNS", 5)
+    spec = tmp_path / "s.yaml"
+    spec.write_text(SIM_SPEC)
+    two = fencesweep.grid(str(spec), out=tmp_path / "two.parquet", backend="cuda", jobs=2, progress=False)
+    assert max(cpu_card.launches) <= 5 and sum(cpu_card.launches) == 12
+    one = fencesweep.grid(str(spec), out=tmp_path / "one.parquet", backend="cuda", jobs=1, progress=False)
+    cpu = fencesweep.grid(str(spec), out=tmp_path / "cpu.parquet", jobs=1, progress=False)
+    pd.testing.assert_frame_equal(one, two)
+    _within(cpu, two)
+    assert two.attrs["fencesweep"]["device"]["name"] == "the CPU, standing in" and two.attrs["fencesweep"]["verify"]["ok"]
+
+
+def test_an_adaptive_map_on_the_gpu_path_keeps_the_cpus_rows(cpu_card, tmp_path):
+    """An adaptive map's levels on the GPU path run every load of an element at once, then keep
+    the loads the CPU runs (each element to its first broken constraint): the same rows."""
+    import fencesweep
+    from test_adaptive import SMALL
+
+    gpu_t = fencesweep.grid(SMALL, out=tmp_path / "g.parquet", backend="cuda", jobs=1, verify=False, adaptive=True)
+    cpu_t = fencesweep.grid(SMALL, out=tmp_path / "c.parquet", jobs=1, verify=False, adaptive=True)
+    _within(cpu_t, gpu_t)
+    assert sum(cpu_card.launches) > len(gpu_t)  # the loads after a stop ran, and were not kept
+    assert gpu_t.attrs["fencesweep"]["device"]["name"] == "the CPU, standing in"

@@ -108,8 +108,11 @@ def require_gpu() -> dict:
 class Translation:
     """The device functions of the package's kernel functions (module docstring), made once each."""
 
-    def __init__(self):
+    def __init__(self, **constants):
+        """`constants`: global names set in every copy whose code uses them (model/scenes/gpu.py:
+        DRIVE_TABLE=False)."""
         self.cuda = load()
+        self.constants = constants
         self._made: dict = {}
 
     def device(self, fn, name: str | None = None, **bindings):
@@ -139,10 +142,12 @@ class Translation:
         return py, bind(py, name or py.__name__)
 
     def _fill(self, py, copy, bindings: dict) -> None:
-        """The copy's globals: those its code names translated, then `bindings`."""
+        """The copy's globals: those its code names translated, the constants it uses, then `bindings`."""
         g = copy.__globals__
-        for k in set(py.__code__.co_names) & set(g):
+        names = set(py.__code__.co_names)
+        for k in names & set(g):
             g[k] = self._translated(g[k])
+        g.update({k: v for k, v in self.constants.items() if k in names})
         g.update(bindings)
 
     def _translated(self, value):
@@ -160,7 +165,7 @@ class Translation:
             proxy = pytypes.ModuleType(module.__name__)
             self._made[key] = (module, proxy)  # before its attributes: modules may name each other
             for k, v in vars(module).items():
-                setattr(proxy, k, self._translated(v))
+                setattr(proxy, k, self.constants[k] if k in self.constants else self._translated(v))
         return self._made[key][1]
 
 

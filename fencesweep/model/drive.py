@@ -16,6 +16,13 @@ from fencesweep.model import layout as Lp
 from fencesweep.kernel.cache import solved
 
 
+#: the crank-rocker's alpha_w from the table that follows p's header (15.11): the CPU's kernels. A
+#: GPU thread's copy of drive_angle is compiled with DRIVE_TABLE = False (model/scenes/gpu.py): its p
+#: has no table (each thread would carry its own 49 KB), and it solves (2.2)-(2.6) at each time.
+#: A constant, so that the choice is made when the kernel is compiled: the CPU's code has no branch.
+DRIVE_TABLE = True
+
+
 @kernel()
 def rocker_angle(theta, a, b, d):
     """Rocker angle beta(theta) and d beta/d theta of the open crank-rocker (docs/model.md (2.2), (2.3),
@@ -61,9 +68,9 @@ def drive_angle(t, p):
 
     crank_rocker reads the table of beta(theta) - beta0, beta', beta'' over one crank turn
     that follows the header of p (fill_rocker_table): cubic Hermite interpolation of beta
-    with beta' and of beta' with beta'' (error ~1e-12 rad at 2048 intervals). A p without the
-    table (TAB_N = 0: a GPU thread's, which would otherwise carry its own 49 KB copy) solves the
-    four-bar at theta0 + omega_c t instead (rocker_offset), from the geometry in its header.
+    with beta' and of beta' with beta'' (error ~1e-12 rad at 2048 intervals). Compiled with
+    DRIVE_TABLE False (a GPU thread's copy), it solves the four-bar at theta0 + omega_c t instead
+    (rocker_offset), from the geometry in p's header.
     """
     tc = p[Lp.TC]
     if t <= 0.0 or t >= tc:
@@ -72,10 +79,10 @@ def drive_angle(t, p):
     if p[Lp.PROFILE] == Lp.PROFILE_HARMONIC:
         half = 0.5 * p[Lp.SWING]
         return half * (1.0 - math.cos(om * t)), half * om * math.sin(om * t)
-    n = int(p[Lp.TAB_N])
-    if n == 0:
+    if not DRIVE_TABLE:
         aw, db = rocker_offset(p[Lp.CR_TH0] + om * t, p[Lp.CR_A], p[Lp.CR_B], p[Lp.CR_D], p[Lp.CR_B0])
         return aw, db * om
+    n = int(p[Lp.TAB_N])
     u = t * p[Lp.TAB_RATE]
     i = int(u)
     if i >= n:

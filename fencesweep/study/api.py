@@ -174,13 +174,10 @@ def run_grid(spec: Any, *, out: str | Path | None = None, jobs: int | None = Non
     _check_backend(backend, scheduler)
     _check_verify(verify)
     sp = load_spec(spec)
-    if backend == "cuda" and adaptive:
-        raise UsageError("adaptive = True runs on the CPU only (backend 'loky' or 'dask'): the GPU path does not "
-                         "run an adaptive map's levels yet")
-    if adaptive:
-        return _run_adaptive(sp, out, jobs, resume, backend, scheduler, progress, overwrite, verify, wait, log)
     if backend == "cuda":
         sweep.gpu_device(sp)  # refused before anything is made: no numba-cuda, no GPU, another scene
+    if adaptive:
+        return _run_adaptive(sp, out, jobs, resume, backend, scheduler, progress, overwrite, verify, wait, log)
     out = _out(sp, out)
     _note_skipped_loads(sp, log)
     with _saying_what_is_saved(lambda: output.saved_chunks(sp, out)):

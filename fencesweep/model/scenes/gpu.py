@@ -6,7 +6,8 @@ calls stream.cycles_with_work, the CPU's run_cycles' own code, with its work arr
 thread's local memory (MEM = numba.cuda: cuda.local.array) and every kernel function a device function of
 the same source (kernel/cuda.py Translation). A row has the header only (prepare.prepare with
 table=False): the crank-rocker's four-bar is solved at each time instead of read from a table
-that every thread would carry (drive.drive_angle). No trajectory is kept (a 0-row buffer).
+that every thread would carry (drive.drive_angle, compiled with DRIVE_TABLE = False). No
+trajectory is kept (a 0-row buffer).
 
     runner = Cycles()                 # compiles on first use (numba-cuda, ~1 min; then its cache)
     out = runner.run(P)               # P (n, N_P) float64 -> out (n, N_STREAM_CYCLE_RESULTS)
@@ -58,7 +59,7 @@ class Cycles:
     def __init__(self):
         from fencesweep.kernel.cuda import Translation
 
-        self.tr = Translation()
+        self.tr = Translation(DRIVE_TABLE=False)  # a thread's p has no drive table (drive.drive_angle)
         cuda = self.tr.cuda
         self.run_device = self.tr.device(stream.cycles_with_work, "cycles_with_work_gpu", MEM=cuda)
         self.bindings = dict(CUDA=cuda, RUN=self.run_device)

@@ -46,17 +46,18 @@ class Task:
 
 
 def run_tasks(c: int, tasks: list, path: str | None, meta: dict, limits: DS.Limits, rule: AL.LoadRule,
-              shared: tuple | None = None) -> tuple:
+              shared: tuple | None = None, given: dict | None = None) -> tuple:
     """Run one chunk's elements, each load after load until it stops (adaptive_loads.stop), and
     write the chunk at `path` (local workers) or return its rows (Dask): (c, rows or None,
-    scenes, elements)."""
+    scenes, elements). With `given` ({scene: results}, every load of the tasks run at once on a
+    GPU) the loads' results are looked up instead of run: the same loads are kept."""
     spec, simulate = compute.shared(shared)
     rows, scenes = [], []
     for task in tasks:
         smallest = math.inf
         for i, scene in enumerate(task.scenes):
             vals = spec.resolve(int(scene))
-            res = runs.run_one(spec.scene, vals, simulate)
+            res = runs.run_one(spec.scene, vals, simulate) if given is None else given[int(scene)]
             rows.append(res)
             scenes.append(int(scene))
             dlim = vals["dalpha_perm"] if limits.deflection_max is None else limits.deflection_max
@@ -139,6 +140,8 @@ class Evaluator:
 
     def _run(self, chunks: list, pending: list, bar) -> None:
         r = self.run
+        if r.get("gpu"):
+            return self._run_gpu(chunks, pending, bar)
         planned = sum(len(t.scenes) for k in pending for t in chunks[k][1])
         jobs = runs.local_jobs(r["jobs"], planned * r["per_cycle"], r["serial_below"]) if r["local"] else r["jobs"]
         meta = {"salt": self.salt, "adaptive_level": self.level}
@@ -156,6 +159,21 @@ class Evaluator:
                     store.write_chunk(self.work / chunks[k][0], self.lay.spec.scene, scenes, rows,
                                       dict(meta, chunk=k))
                 bar.update(n)
+
+    def _run_gpu(self, chunks: list, pending: list, bar) -> None:
+        """The level's pending chunks with every load of their elements run at once on the GPU
+        (sweep/gpu.py run_scenes), then each element's loads walked to its stop as on the CPU
+        (run_tasks): more cycles than the CPU runs, the same rows kept."""
+        from fencesweep.study.sweep import gpu
+
+        meta = {"salt": self.salt, "adaptive_level": self.level}
+        tasks = [t for k in pending for t in chunks[k][1]]
+        scenes = np.unique(np.concatenate([t.scenes for t in tasks])) if tasks else np.empty(0, np.int64)
+        given = dict(zip(scenes.tolist(), gpu.run_scenes(self.lay.spec, scenes, gpu.runner())))
+        for k in pending:
+            name, part = chunks[k]
+            bar.update(run_tasks(k, part, str(self.work / name), dict(meta, chunk=k), self.lay.limits, self.rule,
+                                 (self.lay.spec, None), given)[3])
 
     def _read(self, chunks: list, tasks: list):
         """The level's cycles from its chunks: element, load, the judged columns, dalpha_perm;

@@ -45,6 +45,7 @@ from fencesweep.study.adaptive.evaluate import Evaluator
 from fencesweep.study.spec import spec as S
 from fencesweep.study.store import lock
 from fencesweep.study.sweep import output, runs
+from fencesweep.study.sweep import pipeline as SW
 from fencesweep.study.sweep import plan as PL
 from fencesweep.study.sweep import verify as V
 from fencesweep.study.sweep.progress import bar as progress_bar
@@ -103,6 +104,7 @@ def run_adaptive(spec: S.Spec, out: str | Path | None = None, jobs: int | None =
     is written when the spec makes no map (adaptive_maps.layout) or `out` is not to be replaced."""
     t0 = time.perf_counter()
     lay = AM.layout(spec)
+    gpu = SW.gpu_device(spec) if backend == "cuda" else None  # the GPU's record, or why it cannot run
     rule, load_rule, log = rule or A.Rule(), load_rule or AL.LoadRule(), log or _quiet
     out = Path(out) if out is not None else default_output(spec)
     output.check_writable(out)
@@ -120,8 +122,8 @@ def run_adaptive(spec: S.Spec, out: str | Path | None = None, jobs: int | None =
         work = root / key[:16]
         output.open_work(root, work, resume, log)
         _write_state(work, spec, key)
-        run = {"jobs": jobs, "local": backend == "loky", "scheduler": scheduler, "simulate": simulate,
-               "serial_below": serial_below, "per_cycle": PER_CYCLE}
+        run = {"jobs": jobs, "local": backend != "dask", "scheduler": scheduler, "simulate": simulate,
+               "serial_below": serial_below, "per_cycle": PER_CYCLE, "gpu": gpu}
         timings = {"warm_up": runs.warm_scenes(spec, lay.scenes(np.zeros(1, dtype=np.int64))[:1], simulate)}
         ev = Evaluator(lay, work, key, load_rule, run)
         refiner = A.Refiner(lay.grid, rule)
@@ -181,7 +183,8 @@ def _finish(lay: AM.Layout, refiner: A.Refiner, ev: Evaluator, out: Path, work: 
             run["scheduler"], run["simulate"], run["serial_below"], run["per_cycle"], tables=tables)
     t = time.perf_counter()
     counts = {"scenes": plan.n_models, "skipped": 0, "model_runs": plan.n_models, "full_grid_scenes": lay.n_full}
-    meta = {"adaptive": record, "counts": counts} | ({"verify": vrec} if vrec is not None else {})
+    meta = {"adaptive": record, "counts": counts} | ({"verify": vrec} if vrec is not None else {}) \
+        | ({"device": run["gpu"]} if run.get("gpu") else {})
     failed = assemble(plan, work, out, meta, tables)
     timings["assemble"] = time.perf_counter() - t
     path, summary = APT.write(lay, refiner, ev, out, record)

@@ -47,6 +47,21 @@ def runner():
     return _RUNNER[0]
 
 
+def run_scenes(spec: S.Spec, scenes: np.ndarray, runner) -> list:
+    """The results of the cycle scenes `scenes` (scene numbers of `spec`) on the GPU, in batches
+    (batch_size), as result dicts (as runs.run_one gives them; a run that cannot be prepared is
+    a failed row), in this process: an adaptive map's level (adaptive/evaluate.py)."""
+    from fencesweep.model.results import N_CYCLE_RESULTS, unpack
+
+    size, out = batch_size(runner.free_memory()), []
+    for at in range(0, len(scenes), size):
+        _, P, failed = _prepare(0, scenes[at:at + size], (spec, None))
+        res = runner.launch(P).result()
+        out += [store.failed_result("cycle", failed[k]) if k in failed else unpack("cycle", res[k, :N_CYCLE_RESULTS])
+                for k in range(P.shape[0])]
+    return out
+
+
 def check_scene(spec: S.Spec) -> None:
     """Backend "cuda" runs `cycle` scenes only: another scene is a usage error naming it."""
     if spec.scene != "cycle":
