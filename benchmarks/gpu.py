@@ -206,7 +206,12 @@ def _md(rows: list, args) -> str:
             f"Machine: {os.cpu_count()} cores; GPU: {gpus[0]['name'] if gpus else 'none'}; numba-cuda "
             f"{cuda.version()}. {time.strftime('%Y-%m-%d')}.", ""]
     if args.stand_in:
-        head += ["| spec | runs | stand-in: command s | its compute s | cpu all cores: command s |",
+        head += ["No GPU here: the card is replaced by a stand-in that answers each batch at once (module "
+                 "docstring), so these are the GPU path's CPU side alone: planning, the kernels' load and timed "
+                 "sample, the parameter vectors, the chunks and the table, against the whole CPU run on all cores "
+                 "of this machine (neither verified). `compute` is the phase in which the card would run. The "
+                 "GPU's own seconds await a machine with one.", "",
+                 "| spec | runs | stand-in: command s | its compute s | cpu all cores: command s |",
                  "|---|---:|---:|---:|---:|"]
         for r in rows:
             s, c = r["stand_in"], r["cpu_all"]
