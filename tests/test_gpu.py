@@ -262,7 +262,8 @@ class CpuCard:
         self.launches.append(P.shape[0])
         out = np.empty((P.shape[0], N_STREAM_CYCLE_RESULTS))
         for k, header in enumerate(P):
-            p = with_drive_table(header.copy()) if header[Lp.PROFILE] == Lp.PROFILE_CRANK_ROCKER else header
+            p = with_drive_table(header.copy(), header[Lp.SWING], header[Lp.CR_B]) \
+                if header[Lp.PROFILE] == Lp.PROFILE_CRANK_ROCKER else header  # b = r_b (docs/model.md (2.1))
             loads = np.ascontiguousarray(p[list(Lp.LOAD_SLOTS)][None, :])
             run_cycles(np.ascontiguousarray(p), loads, float(p[Lp.TC]), out[k:k + 1], np.empty((0, 19)),
                        np.zeros(2, np.int64))

@@ -50,8 +50,8 @@ TOL = 36  # local error tolerance (numerics.TOL x step_factor^5, floored)
 DT = 37  # fixed step of the RK4 baseline [s]
 H_MAX = 38  # largest step [s]
 SNAP = 39  # slip [m/s] under which a load without contacts rides the belt in closed form
-# --- the crank-rocker's geometry (docs/model.md (2.1), (2.5); 0 for the harmonic profile): a p without the
-# table (TAB_N = 0, a GPU thread's) solves (2.2)-(2.6) at each time instead (drive.drive_angle) ---
+# --- the crank-rocker's geometry (docs/model.md (2.1), (2.5)), in a p without the table only (a GPU
+# thread's, TAB_N = 0), which solves (2.2)-(2.6) at each time instead (drive.drive_angle); else 0 ---
 CR_A, CR_B, CR_D, CR_TH0, CR_B0 = 40, 41, 42, 43, 44  # a, b, d, theta0, beta0
 N_P = 45  # length of the header; the crank-rocker table follows it (drive.py)
 

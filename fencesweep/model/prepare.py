@@ -58,8 +58,8 @@ def _contact_part(vals: dict) -> np.ndarray:
 
 def prepare(vals: dict, table: bool = True) -> np.ndarray:
     """Fill the kernel parameter vector from a resolved parameter dict (params.resolve); without
-    `table`, the crank-rocker's header only (TAB_N = 0), N_P entries, as a GPU thread takes it
-    (its drive.drive_angle solves the four-bar)."""
+    `table`, the header only, N_P entries, with the crank-rocker's geometry (CR_*) instead of its
+    table (TAB_N = 0), as a GPU thread takes it (its drive.drive_angle solves the four-bar)."""
     p = _contact_part(vals)
     for name, idx in (("v", Lp.V), ("P_max", Lp.PMAX), ("mu2", Lp.MU2), ("L", Lp.LL),
                       ("A", Lp.AA), ("dP", Lp.DP), ("R_s", Lp.RS), ("phi0", Lp.PHI0), ("l", Lp.FL),
@@ -81,19 +81,19 @@ def prepare(vals: dict, table: bool = True) -> np.ndarray:
     p[Lp.TAB_H] = 1.0
     if vals["profile"] == "crank_rocker":
         swing, ratio = float(vals["swing"]), float(vals["coupler_ratio"])
+        if table:  # the CPU's kernels read the table only (drive.DRIVE_TABLE)
+            return with_drive_table(p, swing, ratio)
         p[Lp.CR_A], p[Lp.CR_B], p[Lp.CR_D], p[Lp.CR_TH0], p[Lp.CR_B0] = crank_rocker_geometry(swing, ratio)
-        if table:
-            return with_drive_table(p)
     return p
 
 
-def with_drive_table(p: np.ndarray) -> np.ndarray:
-    """A crank-rocker's header p (its swing, t_c and coupler ratio b = r_b set) followed by its drive
-    table (drive.rocker_table; docs/model.md (15.11)), as the CPU's kernels read it."""
+def with_drive_table(p: np.ndarray, swing: float, coupler_ratio: float) -> np.ndarray:
+    """A crank-rocker's header p (t_c set) followed by its drive table (drive.rocker_table;
+    docs/model.md (15.11)), as the CPU's kernels read it."""
     p[Lp.TAB_N] = TABLE_SIZE
     p[Lp.TAB_RATE] = TABLE_SIZE / float(p[Lp.TC])
     p[Lp.TAB_H] = 2.0 * math.pi / TABLE_SIZE
-    return np.concatenate((p, rocker_table(float(p[Lp.SWING]), float(p[Lp.CR_B]))))
+    return np.concatenate((p, rocker_table(swing, coupler_ratio)))
 
 
 def load_inertia(m1: float, L: float, A: float) -> float:
