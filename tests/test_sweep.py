@@ -152,6 +152,17 @@ def test_metadata_records_spec_hash_and_versions(tmp_path):
     assert df.attrs["units"]["K2"] == "N m/rad" and df.attrs["fencesweep"]["spec_hash"] == sp.hash
 
 
+def test_the_source_hash_covers_the_engine_not_only_the_study():
+    """A sweep's chunks are salted with the hash of the package's sources (plan.plan_salt): an
+    edit of a kernel or a model module must change it, or a resumed sweep would reuse chunks
+    of the old engine."""
+    import fencesweep
+
+    names = {f.relative_to(store.PACKAGE).as_posix() for f in store.source_files()}
+    assert {"kernel/rk.py", "model/drive.py", "model/scenes/stream.py", "study/sweep/plan.py", "cli.py"} <= names
+    assert store.PACKAGE == Path(fencesweep.__file__).resolve().parent
+
+
 def test_pandas_round_trip(tmp_path):
     res = run(tmp_path)
     df = pd.read_parquet(res.out)

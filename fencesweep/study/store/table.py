@@ -46,12 +46,21 @@ _STR = {"outcome", "status"}
 
 
 # ---------------------------------------------------------------------------- provenance
+#: the package's folder (this file is fencesweep/study/store/table.py)
+PACKAGE = Path(__file__).resolve().parents[2]
+
+
+def source_files() -> list:
+    """The package's Python sources, every one of them (kernel/, model/, study/, ...)."""
+    return sorted(PACKAGE.rglob("*.py"))
+
+
 def source_hash() -> str:
-    """sha256 over the package's Python sources: a changed engine never reuses old chunks."""
+    """sha256 over the package's Python sources (source_files): a changed engine never reuses old
+    chunks (sweep/plan.py plan_salt)."""
     h = hashlib.sha256()
-    root = Path(__file__).resolve().parents[1]  # the package
-    for f in sorted(root.rglob("*.py")):
-        h.update(f.relative_to(root).as_posix().encode() + b"\0" + f.read_bytes() + b"\0")
+    for f in source_files():
+        h.update(f.relative_to(PACKAGE).as_posix().encode() + b"\0" + f.read_bytes() + b"\0")
     return h.hexdigest()
 
 
