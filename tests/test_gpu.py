@@ -331,3 +331,26 @@ def test_an_adaptive_map_on_the_gpu_path_keeps_the_cpus_rows(cpu_card, tmp_path)
     _within(cpu_t, gpu_t)
     assert sum(cpu_card.launches) > len(gpu_t)  # the loads after a stop ran, and were not kept
     assert gpu_t.attrs["fencesweep"]["device"]["name"] == "the CPU, standing in"
+
+
+def test_a_run_that_cannot_be_prepared_is_a_failed_row_and_its_thread_runs_a_valid_cycle(monkeypatch):
+    """As on the CPU (runs.run_one), a run whose parameters raise is a failed row naming the
+    exception; its GPU thread gets the default cycle's vector, never one of zeros."""
+    from fencesweep.model import params
+    from fencesweep.model import prepare as prep
+    from fencesweep.study.spec import file as specfile
+    from fencesweep.study.sweep import gpu
+
+    spec = specfile.loads(SIM_SPEC)  # scene = 6 case + 2 (B2 index) + (K2 index)
+    real = prep.prepare
+
+    def fails_for_b2_300(vals, table=True):
+        if vals["B2"] == 300.0:
+            raise ValueError("no")
+        return real(vals, table)
+
+    monkeypatch.setattr(prep, "prepare", fails_for_b2_300)
+    _, P, failed = gpu._prepare(0, np.arange(12), (spec, None))
+    assert sorted(failed) == [4, 5, 10, 11] and set(failed.values()) == {"failed: exception ValueError: no"}
+    default = real(params.resolve("cycle"), table=False)
+    assert all(np.array_equal(P[k], default) for k in failed) and (P[:, Lp.TC] > 0).all()

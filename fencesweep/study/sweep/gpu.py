@@ -89,7 +89,9 @@ def batch_size(free_bytes: int | None) -> int:
 
 def _prepare(c: int, rows: np.ndarray, shared: tuple | None = None) -> tuple:
     """Chunk c's parameter vectors (n, N_P) and {position: reason} of the runs that could not be
-    prepared (their vector is the first good one's, their result discarded)."""
+    prepared: their thread runs the default cycle (docs/model.md §12), whose result is discarded
+    (a vector of zeros would step with h = 0 to the step budget)."""
+    from fencesweep.model import params
     from fencesweep.model.layout import N_P
     from fencesweep.model.prepare import prepare
 
@@ -101,9 +103,8 @@ def _prepare(c: int, rows: np.ndarray, shared: tuple | None = None) -> tuple:
             P[k] = prepare(vals, table=False)
         except Exception as exc:  # recorded, never silent, as runs.run_one does
             failed[k] = f"failed: exception {type(exc).__name__}: {exc}"
-    good = [k for k in range(len(rows)) if k not in failed]
-    for k in failed:
-        P[k] = P[good[0]] if good else P[k]
+    if failed:
+        P[list(failed)] = prepare(params.resolve("cycle"), table=False)
     return c, P, failed
 
 
