@@ -26,7 +26,9 @@ import numpy as np
 from fencesweep.kernel import driver
 from fencesweep.kernel import numerics as NU
 from fencesweep.kernel import rk
+from fencesweep.kernel.driver import N_COUNT
 from fencesweep.kernel.jit import HEAP, bind, entry, kernel
+from fencesweep.kernel.rk import N_STAGES
 from fencesweep.model import layout as Lp
 from fencesweep.model import results as Rs
 from fencesweep.model.scenes.contacts import N_SLOTS
@@ -35,8 +37,6 @@ from fencesweep.model.scenes.cycle.books import (apply_contact_change, drop_load
 from fencesweep.model.scenes.cycle.layout import (A_EXITED, A_QMAX, A_STATUS, A_T_EXIT, IW_EDGE, IW_MODE, IW_RIDE,
                                                   N_ACC, N_AUX, N_DENSE, N_IW, N_Q, N_QV, N_RISING, N_STATE, N_TRAJ,
                                                   Q_NF, QV_0, Work)
-from fencesweep.kernel.driver import N_COUNT
-from fencesweep.kernel.rk import N_STAGES
 from fencesweep.model.scenes.cycle.peaks import quantities_from_aux
 from fencesweep.model.scenes.cycle.rhs import deflection, fence_state, rhs, step
 from fencesweep.model.scenes.cycle.run import run, set_tolerance
@@ -219,14 +219,16 @@ def cycles_with_work(p, loads, period, out, traj, row_starts, pk):
     """run_cycles (its docstring) with the work arrays (layout.Work) allocated here in MEM (a
     template: the one list of the work arrays' shapes, for both targets) and pk, the cycle's
     parameters, given (a copy of p's length)."""
-    w = Work(MEM.local.array(N_STATE, F8), MEM.local.array(N_STATE, F8), MEM.local.array(N_STATE, F8), MEM.local.array(N_STATE, F8),
-             MEM.local.array((N_STAGES, N_STATE), F8), MEM.local.array((N_DENSE, N_STATE), F8), MEM.local.array(1, I8),
-             MEM.local.array(N_AUX, F8), MEM.local.array(N_AUX, F8), MEM.local.array(N_IW, I8), MEM.local.array(N_SLOTS, I8),
-             MEM.local.array(N_SLOTS, I8), MEM.local.array(N_SLOTS, F8), MEM.local.array(N_SLOTS, F8),
-             MEM.local.array(N_SLOTS, F8), MEM.local.array(N_SLOTS, F8), MEM.local.array((N_QV, N_Q), F8),
-             MEM.local.array(N_ACC, F8), MEM.local.array(N_STATE, F8), MEM.local.array(N_STATE, F8), MEM.local.array(1, F8),
-             MEM.local.array(N_RISING, F8), MEM.local.array((N_STAGES, N_STATE), F8), MEM.local.array(N_STATE, F8),
-             MEM.local.array(N_COUNT, F8), traj, MEM.local.array(1, I8), pk)
+    f, i = F8, I8
+    w = Work(MEM.local.array(N_STATE, f), MEM.local.array(N_STATE, f), MEM.local.array(N_STATE, f),
+             MEM.local.array(N_STATE, f), MEM.local.array((N_STAGES, N_STATE), f),
+             MEM.local.array((N_DENSE, N_STATE), f), MEM.local.array(1, i), MEM.local.array(N_AUX, f),
+             MEM.local.array(N_AUX, f), MEM.local.array(N_IW, i), MEM.local.array(N_SLOTS, i),
+             MEM.local.array(N_SLOTS, i), MEM.local.array(N_SLOTS, f), MEM.local.array(N_SLOTS, f),
+             MEM.local.array(N_SLOTS, f), MEM.local.array(N_SLOTS, f), MEM.local.array((N_QV, N_Q), f),
+             MEM.local.array(N_ACC, f), MEM.local.array(N_STATE, f), MEM.local.array(N_STATE, f),
+             MEM.local.array(1, f), MEM.local.array(N_RISING, f), MEM.local.array((N_STAGES, N_STATE), f),
+             MEM.local.array(N_STATE, f), MEM.local.array(N_COUNT, f), traj, MEM.local.array(1, i), pk)
     clear_work(p, w)
     return cycles(p, w, loads, period, out, row_starts)
 
