@@ -14,6 +14,7 @@ Only the scene `cycle` runs here (check_scene); the verification re-runs on the 
 from __future__ import annotations
 
 import contextlib
+import functools
 import os
 import time
 from pathlib import Path
@@ -34,17 +35,13 @@ from fencesweep.study.sweep.progress import bar as progress_bar
 BATCH_RUNS = 131_072
 
 
-_RUNNER: list = []
-
-
+@functools.cache
 def runner():
     """This process's cycle kernel on the GPU (model/scenes/gpu.py Cycles), made once: its compile
     (or its load from the cache) is paid at its first launch."""
-    if not _RUNNER:
-        from fencesweep.model.scenes.gpu import Cycles
+    from fencesweep.model.scenes.gpu import Cycles
 
-        _RUNNER.append(Cycles())
-    return _RUNNER[0]
+    return Cycles()
 
 
 def run_scenes(spec: S.Spec, scenes: np.ndarray, runner) -> list:
