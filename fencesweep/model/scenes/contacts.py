@@ -2,7 +2,9 @@
 geometry (penetration D, its rate, the gap and the gap's rate when apart) and one for its
 forces (on the load, the moment on the fence, N and the dissipated powers of §11).
 
-Contact slots of the cycle: corner-fence j -> j (0-3), corner-rail j -> 4 + j, tip-edge -> 8.
+Contact slots of the cycle: corner-fence j -> j (0-3), corner-rail j -> 4 + j; the fence's manifold
+(docs/model.md §5.2) has two more: TIP (8), the under-tip point U on the fence's face or the tip
+end of the fence's part below a load edge, and PIVOT (9), that part's pivot end.
 A slot is APART (no penetration or out of its span), PUSH (penetrating, N > 0: it carries
 force) or CLIPPED (penetrating with the Kelvin force <= 0: N = 0, docs/model.md §4).
 """
@@ -11,12 +13,18 @@ from __future__ import annotations
 
 from fencesweep.kernel.jit import kernel
 
+import math
+
 from fencesweep.model.contact import coulomb, kelvin_force
+from fencesweep.model.scenes.load import corner_motion, corner_offset
 
 APART, PUSH, CLIPPED = 0, 1, 2
-N_SLOTS = 9
+N_SLOTS = 10
 RAIL0 = 4
 TIP = 8
+PIVOT = 9
+#: the manifold's tag (docs/model.md (5.7)): 0-3 a load edge e; FACE + i the fence's face, U on edge i
+FACE = 4
 
 
 @kernel(inline=True)
@@ -104,30 +112,124 @@ def tip_position(fl, ca, sa):
 
 @kernel(inline=True)
 def tip_local(tx, ty, x, yy, cphi, sphi):
-    """The fence tip T = (tx, ty) in the load's frame (docs/model.md (5.6)), and T - centroid in the world
-    frame."""
+    """A fence point P = (tx, ty) (the tip T, or P(u) = u T) in the load's frame (docs/model.md
+    (5.6)), and P - centroid in the world frame."""
     dx = tx - x
     dyy = ty - yy
     return cphi * dx + sphi * dyy, -sphi * dx + cphi * dyy, dx, dyy
 
 
+@kernel(inline=True)
+def edge_margin(e, plx, ply, hl, hw):
+    """delta_e: depth of the point P' = (plx, ply) (the load's frame) below load edge e, > 0 on the
+    load's side of its line (docs/model.md (5.8))."""
+    if e == 0:
+        return hl - plx
+    if e == 1:
+        return hl + plx
+    if e == 2:
+        return hw - ply
+    return hw + ply
+
+
+@kernel(inline=True)
+def fence_in_load(olx, oly, tlx, tly, hl, hw, grow):
+    """The fence's part inside the load, [u_a, u_b] of P(u) = u T (docs/model.md (5.17)), O' =
+    (olx, oly), T' = (tlx, tly) in the load's frame: u cut by each edge's half-plane, the load
+    grown by `grow` on every side (a contact's hysteresis). Returns (u_a, u_b, the edge that cuts
+    u_a, the edge that cuts u_b; -1 for the fence's own ends); empty when u_a > u_b: then the
+    fence misses the load and no point of the manifold pushes (5.7)."""
+    lo, hi, e_lo, e_hi = 0.0, 1.0, -1, -1
+    for e in range(4):
+        c0 = edge_margin(e, olx, oly, hl, hw) + grow
+        c1 = edge_margin(e, tlx, tly, hl, hw) + grow - c0  # delta_e(u) + grow = c0 + u c1
+        if c1 > 0.0:
+            if -c0 / c1 > lo:
+                lo, e_lo = -c0 / c1, e
+        elif c1 < 0.0:
+            if -c0 / c1 < hi:
+                hi, e_hi = -c0 / c1, e
+        elif c0 < 0.0:
+            return 1.0, 0.0, -1, -1
+    return lo, hi, e_lo, e_hi
+
+
+@kernel(inline=True)
+def pivot_local(x, yy, cphi, sphi):
+    """The pivot O in the load's frame (docs/model.md (5.6) with P = O)."""
+    return -(cphi * x + sphi * yy), sphi * x - cphi * yy
+
+
+@kernel(inline=True)
+def edge_point_rate(px, py, dx, dyy, nex, ney, vx, vy, om, dal):
+    """D' of the fence point P = (px, py) below the edge of outward normal n_e, dx, dyy = P - X
+    (docs/model.md (5.9)): -(v_P - v_Q).n_e, v_P = alpha' k x P, v_Q the load's point under P."""
+    return -((-dal * py - (vx - om * dyy)) * nex + (dal * px - (vy + om * dx)) * ney)
+
+
+@kernel(inline=True)
+def corner_s_h(j, y, hl, hw, ca, sa, cphi, sphi):
+    """Corner j's position along the fence s and distance from its line h (docs/model.md (5.1))."""
+    rx, ry = corner_offset(j, hl, hw, cphi, sphi)
+    gx = y[0] + rx
+    gy = y[1] + ry
+    return gx * ca + gy * sa, -gx * sa + gy * ca
+
+
 @kernel()
-def tip_edge_choice(x, yy, cphi, sphi, tlx, tly, hl, hw):
-    """Edge pushed by the tip, by a separating-axis test of the segment O-T against the load:
-    the axis of smaller overlap, its edge nearest T (docs/model.md (5.7)). 0: x' = +L/2, 1: -L/2,
-    2: y' = +A/2, 3: -A/2."""
-    olx = -(cphi * x + sphi * yy)  # the pivot in the load frame
-    oly = sphi * x - cphi * yy
-    ovx = min(hl, max(olx, tlx)) - max(-hl, min(olx, tlx))
-    ovy = min(hw, max(oly, tly)) - max(-hw, min(oly, tly))
-    if ovx < ovy:
-        return 0 if tlx >= 0.0 else 1
-    return 2 if tly >= 0.0 else 3
+def under_tip_edge(y, hl, hw, fl, ca, sa, cphi, sphi, iw):
+    """The load edge that carries the under-tip point U (docs/model.md (5.16)): of the edges i
+    (corners i, i + 1 mod 4) with one corner in the span (s < l) and one beyond (s >= l), the
+    one deeper at s = l (with the in-span corner's side). Returns (i, its depth there) or (-1, -inf)."""
+    best = -1
+    deep = -math.inf
+    for i in range(4):
+        j = (i + 1) % 4
+        si, hi = corner_s_h(i, y, hl, hw, ca, sa, cphi, sphi)
+        sj, hj = corner_s_h(j, y, hl, hw, ca, sa, cphi, sphi)
+        if (si < fl) == (sj < fl):
+            continue
+        if si < fl:
+            d = -iw[i] * (hi + (fl - si) / (sj - si) * (hj - hi))
+        else:
+            d = -iw[j] * (hj + (fl - sj) / (si - sj) * (hi - hj))
+        if d > deep:
+            deep = d
+            best = i
+    return best, deep
+
+
+@kernel()
+def under_tip(i, y, hl, hw, fl, ca, sa, dal, cphi, sphi, iw):
+    """The under-tip point U on load edge i (docs/model.md (5.16)): its offset from the centroid
+    (rx, ry), the load's velocity there (vx, vy), its depth D_U = min(own depth, that of the corner
+    beyond the tip) and its rate, and the side sigma of the in-span corner C. The edge is the one
+    frozen for the step (under_tip_edge chose it); lambda is not clamped."""
+    j = (i + 1) % 4
+    si, hi = corner_s_h(i, y, hl, hw, ca, sa, cphi, sphi)
+    sj, hj = corner_s_h(j, y, hl, hw, ca, sa, cphi, sphi)
+    c, cb = (i, j) if si <= sj else (j, i)
+    rcx, rcy, gcx, gcy, vcx, vcy = corner_motion(c, y, hl, hw, cphi, sphi)
+    rbx, rby, gbx, gby, vbx, vby = corner_motion(cb, y, hl, hw, cphi, sphi)
+    sc, sb = gcx * ca + gcy * sa, gbx * ca + gby * sa
+    lam = (fl - sc) / (sb - sc) if sb != sc else 0.0
+    rx = rcx + lam * (rbx - rcx)
+    ry = rcy + lam * (rby - rcy)
+    vx = y[3] - y[5] * ry
+    vy = y[4] + y[5] * rx
+    sg = iw[c]
+    d_own = -sg * (-(y[0] + rx) * sa + (y[1] + ry) * ca)
+    d_own_rate = -sg * ((-vx * sa + vy * ca) - dal * fl)
+    d_beyond = -sg * (-gbx * sa + gby * ca)
+    if d_beyond < d_own:
+        return rx, ry, vx, vy, d_beyond, -sg * ((-vbx * sa + vby * ca) - dal * sb), sg
+    return rx, ry, vx, vy, d_own, d_own_rate, sg
 
 
 @kernel(inline=True)
 def tip_edge_normal(edge, tlx, tly, hl, hw, cphi, sphi):
-    """Depth D of T below the edge and the edge's outward normal n_e in the world frame (docs/model.md (5.8))."""
+    """Depth D of a fence point P' = (tlx, tly) (the load's frame) below load edge `edge` and the
+    edge's outward normal n_e in the world frame (docs/model.md (5.8))."""
     if edge == 0:
         return hl - tlx, cphi, sphi
     if edge == 1:
@@ -139,10 +241,10 @@ def tip_edge_normal(edge, tlx, tly, hl, hw, cphi, sphi):
 
 @kernel(inline=True)
 def tip_edge_force(D, nex, ney, tx, ty, dx, dyy, vx, vy, om, dal, kc, cd, law, mu2, eps, push):
-    """The tip pushing an edge: force -N n_e + friction along the edge on the load, its torque,
-    the reaction's moment on the fence at T (friction included), N, (N - N_el) D', friction
-    power. D' from the tip's velocity relative to the load's material point under it (docs/model.md (5.9),
-    (5.10))."""
+    """A fence point P = (tx, ty) pushing a load edge (the tip, or an end of the fence's part
+    below the edge): force -N n_e + friction along the edge on the load, its torque, the
+    reaction's moment on the fence at P (friction included), N, (N - N_el) D', friction power. D'
+    from P's velocity relative to the load's material point under it (docs/model.md (5.9), (5.10))."""
     rvx = -dal * ty - (vx - om * dyy)
     rvy = dal * tx - (vy + om * dx)
     Dd = -(rvx * nex + rvy * ney)

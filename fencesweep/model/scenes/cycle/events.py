@@ -16,8 +16,8 @@ from fencesweep.model import layout as Lp
 from fencesweep.model.scenes.contacts import APART, N_SLOTS
 from fencesweep.model.scenes.cycle.layout import IW_CODE, N_CTRL, N_STATE
 from fencesweep.model.scenes.cycle.rhs import step
-from fencesweep.model.scenes.cycle.slots import (changed_mask, classify, frame_at, releases, slot_changed,
-                                                 slot_eval)
+from fencesweep.model.scenes.cycle.slots import (changed_at, changed_mask, classify, frame_at, releases,
+                                                 slot_changed, slot_gap)
 from fencesweep.model.scenes.load import outcome_margin
 
 
@@ -27,12 +27,7 @@ def mask_changed(ctx, theta):
     t0, h, y0, Q, p, iw, tmp, mask = ctx
     rk.dense_eval(y0, Q, theta, tmp, N_CTRL)
     ca, sa, dal, cphi, sphi = frame_at(t0 + theta * h, tmp, p, iw)
-    for k in range(N_SLOTS):
-        if mask & (1 << k):
-            c, e, g, r = slot_eval(k, tmp, p, iw, ca, sa, dal, cphi, sphi)
-            if slot_changed(k, c, e, iw):
-                return True
-    return False
+    return changed_at(mask, tmp, p, iw, ca, sa, dal, cphi, sphi)
 
 
 @kernel()
@@ -41,7 +36,7 @@ def neg_gap(ctx, theta):
     t0, h, y0, Q, p, iw, tmp, k = ctx
     rk.dense_eval(y0, Q, theta, tmp, N_CTRL)
     ca, sa, dal, cphi, sphi = frame_at(t0 + theta * h, tmp, p, iw)
-    c, e, g, r = slot_eval(k, tmp, p, iw, ca, sa, dal, cphi, sphi)
+    g, r = slot_gap(k, tmp, p, iw, ca, sa, dal, cphi, sphi)
     return -g
 
 
@@ -59,7 +54,7 @@ def gap_crossed(ctx, theta):
     t0, h, y0, Q, p, iw, tmp, k, closed0 = ctx
     rk.dense_eval(y0, Q, theta, tmp, N_CTRL)
     ca, sa, dal, cphi, sphi = frame_at(t0 + theta * h, tmp, p, iw)
-    c, e, g, r = slot_eval(k, tmp, p, iw, ca, sa, dal, cphi, sphi)
+    g, r = slot_gap(k, tmp, p, iw, ca, sa, dal, cphi, sphi)
     return (g <= 0.0) != closed0
 
 

@@ -12,7 +12,7 @@ The energies are quadratures of the first 8 components; all 13 are under error c
 events and peaks read only the first N_CTRL = 8 from the dense output).
 
 Integer work vector iw: the corners' sides sigma_j (§5.1), the code of each contact slot
-(contacts.py: APART / PUSH / CLIPPED), the tip's edge, the fence mode, whether the load is on
+(contacts.py: APART / PUSH / CLIPPED), the fence's manifold (its axis, docs/model.md (5.7)), the fence mode, whether the load is on
 the belt and whether it rides the belt in closed form.
 
 `Work` is the tuple of a run's work arrays, allocated once by the entry point (stream.py) and
@@ -25,12 +25,12 @@ from collections import namedtuple
 N_STATE = 13
 N_CTRL = 8  # components that events and peaks read from the dense output (the energies are not)
 # integer work vector
-IW_CODE = 4  # 4 .. 12: slot codes
-IW_EDGE = 13
-IW_MODE = 14
-IW_LOAD = 15
-IW_RIDE = 16
-N_IW = 17
+IW_CODE = 4  # 4 .. 13: slot codes (contacts.N_SLOTS)
+IW_EDGE = 14  # the fence's manifold: its tag (slots.manifold)
+IW_MODE = 15
+IW_LOAD = 16
+IW_RIDE = 17
+N_IW = 18
 FM_KELVIN, FM_KINEMATIC, FM_FREE = 0, 1, 2
 # aux outputs of the right-hand side
 AX_NF, AX_NR, AX_TAU, AX_DMAX, AX_FX, AX_FY, AX_TQ, AX_PDISS, AX_PFRIC = 0, 1, 2, 3, 4, 5, 6, 7, 8

@@ -5,14 +5,15 @@ from __future__ import annotations
 
 import math
 
+from fencesweep.kernel import numerics as NU
 from fencesweep.kernel import rk
 from fencesweep.kernel.jit import kernel
 from fencesweep.model import layout as Lp
 from fencesweep.model.contact import belt_friction
 from fencesweep.model.drive import drive_angle
-from fencesweep.model.scenes.contacts import (APART, PUSH, RAIL0, TIP, corner_fence_force, corner_fence_geometry,
-                                              corner_rail_force, tip_edge_force, tip_edge_normal, tip_local,
-                                              tip_position)
+from fencesweep.model.scenes.contacts import (APART, FACE, PIVOT, PUSH, RAIL0, TIP, corner_fence_force,
+                                              corner_fence_geometry, corner_rail_force, fence_in_load, pivot_local,
+                                              tip_edge_force, tip_edge_normal, tip_local, tip_position, under_tip)
 from fencesweep.model.scenes.cycle.layout import (AX_CA, AX_CPHI, AX_DAL, AX_DMAX, AX_FRAME, AX_FX, AX_FY, AX_NF,
                                                   AX_NR, AX_PDISS, AX_PFRIC, AX_SA, AX_SPHI, AX_TAU, AX_TQ,
                                                   FM_KELVIN, FM_KINEMATIC, IW_CODE, IW_EDGE, IW_LOAD, IW_MODE,
@@ -79,19 +80,52 @@ def corner_sum(y, p, iw, ca, sa, dal, cphi, sphi, aux):
 
 
 @kernel(inline=True)
-def tip_sum(y, p, iw, ca, sa, dal, cphi, sphi, aux):
-    """Add the force of the tip's slot when it is not APART (§5.2)."""
-    ct = iw[IW_CODE + TIP]
-    if ct == APART:
+def edge_point_sum(e, u, code, y, p, ca, sa, dal, cphi, sphi, aux):
+    """Add the force of the fence point P(u) = u T pushing load edge e (docs/model.md (5.9), (5.10))."""
+    if code == APART:
         return
-    hl = 0.5 * p[Lp.LL]
-    hw = 0.5 * p[Lp.AA]
+    tx, ty = tip_position(p[Lp.FL], ca, sa)
+    px, py = u * tx, u * ty
+    plx, ply, dx, dyy = tip_local(px, py, y[0], y[1], cphi, sphi)
+    D, nex, ney = tip_edge_normal(e, plx, ply, 0.5 * p[Lp.LL], 0.5 * p[Lp.AA], cphi, sphi)
+    a, b, c, d, n, pd, pf, Dd = tip_edge_force(D, nex, ney, px, py, dx, dyy, y[3], y[4], y[5], dal,
+                                               p[Lp.KC], p[Lp.CD], p[Lp.LAW], p[Lp.MU2], p[Lp.EPSV], code == PUSH)
+    add_contact(aux, AX_NF, a, b, c, d, n, pd, pf, D)
+
+
+@kernel(inline=True)
+def under_tip_sum(i, y, p, iw, ca, sa, dal, cphi, sphi, aux):
+    """Add the force of the under-tip point U on load edge i (docs/model.md (5.16)): a corner's
+    force (5.4) at s = l."""
+    fl = p[Lp.FL]
+    rx, ry, vx, vy, D, Dd, sg = under_tip(i, y, 0.5 * p[Lp.LL], 0.5 * p[Lp.AA], fl, ca, sa, dal, cphi, sphi, iw)
+    a, b, c, d, n, pd, pf = corner_fence_force(rx, ry, vx, vy, fl, D, Dd, sg, ca, sa, p[Lp.KC], p[Lp.CD], p[Lp.LAW],
+                                               p[Lp.MU2], p[Lp.EPSV], iw[IW_CODE + TIP] == PUSH)
+    add_contact(aux, AX_NF, a, b, c, d, n, pd, pf, D)
+
+
+@kernel(inline=True)
+def tip_sum(y, p, iw, ca, sa, dal, cphi, sphi, aux):
+    """Add the forces of the manifold's TIP and PIVOT slots (docs/model.md §5.2): the under-tip point
+    on the fence's face, or the ends of the fence's part below load edge e (5.17)."""
+    ct = iw[IW_CODE + TIP]
+    cp = iw[IW_CODE + PIVOT]
+    if ct == APART and cp == APART:
+        return
+    tag = iw[IW_EDGE]
+    if tag >= FACE:
+        if ct != APART:
+            under_tip_sum(tag - FACE, y, p, iw, ca, sa, dal, cphi, sphi, aux)
+        return
     tx, ty = tip_position(p[Lp.FL], ca, sa)
     tlx, tly, dx, dyy = tip_local(tx, ty, y[0], y[1], cphi, sphi)
-    D, nex, ney = tip_edge_normal(iw[IW_EDGE], tlx, tly, hl, hw, cphi, sphi)
-    a, b, c, d, n, pd, pf, Dd = tip_edge_force(D, nex, ney, tx, ty, dx, dyy, y[3], y[4], y[5], dal,
-                                               p[Lp.KC], p[Lp.CD], p[Lp.LAW], p[Lp.MU2], p[Lp.EPSV], ct == PUSH)
-    add_contact(aux, AX_NF, a, b, c, d, n, pd, pf, D)
+    olx, oly = pivot_local(y[0], y[1], cphi, sphi)
+    lo, hi, e_lo, e_hi = fence_in_load(olx, oly, tlx, tly, 0.5 * p[Lp.LL], 0.5 * p[Lp.AA],
+                                      NU.CONTACT_HYSTERESIS * p[Lp.FL])
+    if lo > hi:
+        return
+    edge_point_sum(tag, hi, APART if e_hi == tag else ct, y, p, ca, sa, dal, cphi, sphi, aux)
+    edge_point_sum(tag, lo, APART if e_lo == tag else cp, y, p, ca, sa, dal, cphi, sphi, aux)
 
 
 @kernel(inline=True)

@@ -1,8 +1,10 @@
 """The contact slots of the cycle at a state (docs/model.md §5): each slot's code (APART / PUSH /
-CLIPPED, contacts.next_code), its tag (a corner's side sigma_j, §5.1; the tip's edge, §5.2), and
-its gap and the gap's rate (> 0 apart: what the graze check minimises); the stages (§10).
+CLIPPED, contacts.next_code), its tag (a corner's side sigma_j, §5.1; the fence's manifold, §5.2),
+and its gap and the gap's rate (> 0 apart: what the graze check minimises); the stages (§10).
 
-Slots: corner-fence j -> j (0-3), corner-rail j -> 4 + j, tip-edge -> 8 (contacts.py)."""
+Slots: corner-fence j -> j (0-3), corner-rail j -> 4 + j, the manifold's TIP -> 8 and PIVOT -> 9
+(contacts.py). The fence meets the load through one manifold (manifold): the corners and the
+under-tip point on the fence's face, or the ends of the fence's part below one load edge."""
 from __future__ import annotations
 
 import math
@@ -11,12 +13,16 @@ from fencesweep.kernel import numerics as NU
 from fencesweep.kernel.jit import kernel
 from fencesweep.model import layout as Lp
 from fencesweep.model import results as Rs
-from fencesweep.model.scenes.contacts import (APART, CLIPPED, N_SLOTS, PUSH, RAIL0, TIP, corner_fence_geometry, next_code,
-                                              tip_edge_choice, tip_edge_normal, tip_gap, tip_local, tip_position)
+from fencesweep.model.scenes.contacts import (APART, CLIPPED, FACE, N_SLOTS, PIVOT, PUSH, RAIL0, TIP,
+                                              corner_fence_geometry, edge_margin, edge_point_rate, fence_in_load, next_code,
+                                              pivot_local, tip_edge_normal, tip_gap, tip_local, tip_position,
+                                              under_tip, under_tip_edge)
 from fencesweep.model.scenes.cycle.layout import (AX_CA, AX_CPHI, AX_DAL, AX_FRAME, AX_SA, AX_SPHI, IW_CODE, IW_EDGE,
                                                   IW_LOAD, IW_MODE)
 from fencesweep.model.scenes.cycle.rhs import fence_state
 from fencesweep.model.scenes.load import corner_motion
+
+FENCE_BITS = 0b1100001111  # slots 0-3, TIP, PIVOT
 
 
 @kernel(inline=True)
@@ -32,56 +38,167 @@ def corner_side(s, D, sg, fl):
 
 
 @kernel(inline=True)
-def corner_slot(k, y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force):
-    """(code, tag, gap, gap rate) of corner slot k (< TIP): on the fence (§5.1; tag the side) or
-    on the rail (§5.3; tag 0)."""
+def corner_code(j, y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force):
+    """Corner j on the fence (§5.1) on its own: (code, D in the span or -inf, side memory at this state)."""
     hl = 0.5 * p[Lp.LL]
     hw = 0.5 * p[Lp.AA]
-    kc, cd, law = p[Lp.KC], p[Lp.CD], p[Lp.LAW]
     fl = p[Lp.FL]
-    cur = iw[IW_CODE + k]
-    j = k % 4
     rx, ry, gx, gy, gvx, gvy = corner_motion(j, y, hl, hw, cphi, sphi)
-    if k < RAIL0:
-        s, D, Dd = corner_fence_geometry(gx, gy, gvx, gvy, ca, sa, dal, iw[j])
-        side = corner_side(s, D, iw[j], fl)  # the side memory at this state; a change is an event
-        return next_code(cur, D, Dd, s >= 0.0 and s <= fl, kc, cd, law, d_gap, d_force), side, -D, -Dd
-    return next_code(cur, -gy, -gvy, gx <= 0.0, kc, cd, law, d_gap, d_force), 0, gy, gvy
+    s, D, Dd = corner_fence_geometry(gx, gy, gvx, gvy, ca, sa, dal, iw[j])
+    c = next_code(iw[IW_CODE + j], D, Dd, s >= 0.0 and s <= fl, p[Lp.KC], p[Lp.CD], p[Lp.LAW], d_gap, d_force)
+    return c, D if (s >= 0.0 and s <= fl) else -math.inf, corner_side(s, D, iw[j], fl)
 
 
 @kernel(inline=True)
-def tip_slot(y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force):
-    """(code, edge, gap, gap rate) of the tip's slot (§5.2): the box distance of the tip T from
-    the load while apart, the depth below the edge it pushes (tip_edge_choice) inside."""
+def fence_in_use(iw):
+    """Is the fence's manifold in use: a corner on the fence, TIP or PIVOT not APART?"""
+    for k in (0, 1, 2, 3, TIP, PIVOT):
+        if iw[IW_CODE + k] != APART:
+            return True
+    return False
+
+
+@kernel(inline=True)
+def edge_end_code(e, u, tx, ty, y, p, iw, slot, cur, dal, cphi, sphi, d_gap, d_force):
+    """Code of the fence point P(u) = u T pushing load edge e (docs/model.md (5.8), (5.9)); its
+    code in iw counts only while E_e is in use (cur)."""
     hl = 0.5 * p[Lp.LL]
     hw = 0.5 * p[Lp.AA]
-    cur = iw[IW_CODE + TIP]
+    px, py = u * tx, u * ty
+    plx, ply, pdx, pdy = tip_local(px, py, y[0], y[1], cphi, sphi)
+    D, nex, ney = tip_edge_normal(e, plx, ply, hl, hw, cphi, sphi)
+    Dd = edge_point_rate(px, py, pdx, pdy, nex, ney, y[3], y[4], y[5], dal)
+    return next_code(iw[IW_CODE + slot] if cur else APART, D, Dd, True, p[Lp.KC], p[Lp.CD], p[Lp.LAW], d_gap, d_force)
+
+
+@kernel(inline=True)
+def edge_ends(e, lo, hi, e_lo, e_hi, y, p, iw, cur, ca, sa, dal, cphi, sphi, d_gap, d_force):
+    """The point of axis E_e (docs/model.md (5.17)): of the ends u_a = lo, u_b = hi of the fence's
+    part inside the load (fence_in_load, cut there by edges e_lo, e_hi), the deeper below e (an
+    end on e's own line is none), pushing with its own depth; the end in use (cur: E_e in use)
+    kept until the other is deeper by CONTACT_HYSTERESIS l. Returns (code of the pivot end, code
+    of the tip end, one of them APART; the axis' measure)."""
+    hl = 0.5 * p[Lp.LL]
+    hw = 0.5 * p[Lp.AA]
+    tx, ty = tip_position(p[Lp.FL], ca, sa)
+    tlx, tly, dx, dyy = tip_local(tx, ty, y[0], y[1], cphi, sphi)
+    olx, oly = pivot_local(y[0], y[1], cphi, sphi)
+    Da = -math.inf if e_lo == e else edge_margin(e, olx + lo * (tlx - olx), oly + lo * (tly - oly), hl, hw)
+    Db = -math.inf if e_hi == e else edge_margin(e, olx + hi * (tlx - olx), oly + hi * (tly - oly), hl, hw)
+    if Da == -math.inf and Db == -math.inf:
+        return APART, APART, 0.0  # the fence along e's own line: no penetration along e
+    pivot_end = Da > Db
+    if cur and iw[IW_CODE + PIVOT] != APART:
+        pivot_end = Da >= Db - d_gap
+    elif cur and iw[IW_CODE + TIP] != APART:
+        pivot_end = Da > Db + d_gap
+    if pivot_end:
+        return edge_end_code(e, lo, tx, ty, y, p, iw, PIVOT, cur, dal, cphi, sphi, d_gap, d_force), APART, Da
+    return APART, edge_end_code(e, hi, tx, ty, y, p, iw, TIP, cur, dal, cphi, sphi, d_gap, d_force), Db
+
+
+@kernel(inline=True)
+def inside_all(lo, hi, e_lo, e_hi, olx, oly, tlx, tly, p, floor):
+    """Does the fence's part inside the load, [lo, hi] (fence_in_load), lie deeper than floor below
+    every edge: is the fence inside the load, not on its boundary (docs/model.md (5.7): an edge
+    along which it penetrates no deeper separates the bodies)?"""
+    hl = 0.5 * p[Lp.LL]
+    hw = 0.5 * p[Lp.AA]
+    for e in range(4):
+        da = -1.0 if e_lo == e else edge_margin(e, olx + lo * (tlx - olx), oly + lo * (tly - oly), hl, hw)
+        db = -1.0 if e_hi == e else edge_margin(e, olx + hi * (tlx - olx), oly + hi * (tly - oly), hl, hw)
+        if max(da, db) <= floor:
+            return False
+    return True
+
+
+@kernel(inline=True)
+def face_points(y, p, iw, cur, cur_tag, ca, sa, dal, cphi, sphi, d_gap, d_force):
+    """The under-tip point U of the fence's face (docs/model.md (5.16)): (its edge or -1, its code,
+    the edge's own depth at s = l, which the face's measure takes); its code in iw counts only
+    while the face with U on that edge is in use."""
+    hl = 0.5 * p[Lp.LL]
+    hw = 0.5 * p[Lp.AA]
+    fl = p[Lp.FL]
+    ui, d_own = under_tip_edge(y, hl, hw, fl, ca, sa, cphi, sphi, iw)
+    if ui < 0:
+        return -1, APART, -math.inf
+    _, _, _, _, Du, Ddu, _ = under_tip(ui, y, hl, hw, fl, ca, sa, dal, cphi, sphi, iw)
+    held = cur == FACE and cur_tag == FACE + ui
+    cu = next_code(iw[IW_CODE + TIP] if held else APART, Du, Ddu, True, p[Lp.KC], p[Lp.CD], p[Lp.LAW], d_gap, d_force)
+    return ui, cu, d_own
+
+
+@kernel()
+def manifold(y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force):
+    """The fence's contact manifold with the load (docs/model.md (5.7)). The bodies touch where the
+    fence's segment enters the load (fence_in_load, inside_all). The axis is the one of least
+    penetration among the fence's face (the deepest of the load's corners in the span and the
+    edge's point under the tip, (5.16)) and the load's four edges (the deeper end of the fence's
+    part inside the load below each, (5.17)); the axis in use is kept until another is shallower
+    by numerics.CONTACT_HYSTERESIS l; ties go to the face. Its points push: the face's corners
+    and U, or one end on the edge. Returns the codes of corners 0-3 on the fence, TIP, PIVOT, the
+    tag (an edge e, or FACE + U's edge) and the corners' sides (5.2)."""
+    c0, D0, s0 = corner_code(0, y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force)
+    c1, D1, s1 = corner_code(1, y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force)
+    c2, D2, s2 = corner_code(2, y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force)
+    c3, D3, s3 = corner_code(3, y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force)
+    cur_tag = iw[IW_EDGE]
+    cur = (FACE if cur_tag >= FACE else cur_tag) if fence_in_use(iw) else -1
+    tx, ty = tip_position(p[Lp.FL], ca, sa)
+    tlx, tly, _, _ = tip_local(tx, ty, y[0], y[1], cphi, sphi)
+    olx, oly = pivot_local(y[0], y[1], cphi, sphi)
+    grow = d_gap if cur >= 0 else 0.0
+    lo, hi, e_lo, e_hi = fence_in_load(olx, oly, tlx, tly, 0.5 * p[Lp.LL], 0.5 * p[Lp.AA], grow)
+    if not (lo <= hi and inside_all(lo, hi, e_lo, e_hi, olx, oly, tlx, tly, p, -grow)):
+        return APART, APART, APART, APART, APART, APART, cur_tag, s0, s1, s2, s3  # the fence misses the load
+    ui, cu, d_own = face_points(y, p, iw, cur, cur_tag, ca, sa, dal, cphi, sphi, d_gap, d_force)
+    best, m_best = FACE, max(max(D0, D1), max(max(D2, D3), d_own))
+    m_cur = m_best if cur == FACE else math.inf
+    b_piv, b_tip, k_piv, k_tip = APART, APART, APART, APART
+    for e in range(4):
+        cp, ct, m = edge_ends(e, lo, hi, e_lo, e_hi, y, p, iw, cur == e, ca, sa, dal, cphi, sphi, d_gap, d_force)
+        if cur == e:
+            m_cur, k_piv, k_tip = m, cp, ct
+        if m < m_best:
+            best, m_best, b_piv, b_tip = e, m, cp, ct
+    axis = best
+    if cur >= 0 and m_cur <= m_best + NU.CONTACT_HYSTERESIS * p[Lp.FL]:
+        axis, b_piv, b_tip = cur, k_piv, k_tip
+    if axis == FACE:
+        return c0, c1, c2, c3, cu, APART, FACE + max(ui, 0), s0, s1, s2, s3
+    return APART, APART, APART, APART, b_tip, b_piv, axis, s0, s1, s2, s3
+
+
+@kernel(inline=True)
+def slot_gap(k, y, p, iw, ca, sa, dal, cphi, sphi):
+    """Gap and gap rate of slot k on its own (> 0 apart; the graze and crossing checks'
+    quantity): a corner's -D on the fence (5.3) or y_G on the rail (5.11), the tip's box distance
+    from the load (15.7); PIVOT has none (1, 0): it touches only within a manifold."""
+    hl = 0.5 * p[Lp.LL]
+    hw = 0.5 * p[Lp.AA]
+    if k < TIP:
+        rx, ry, gx, gy, gvx, gvy = corner_motion(k % 4, y, hl, hw, cphi, sphi)
+        if k < RAIL0:
+            s, D, Dd = corner_fence_geometry(gx, gy, gvx, gvy, ca, sa, dal, iw[k])
+            return -D, -Dd
+        return gy, gvy
+    if k == PIVOT:
+        return 1.0, 0.0
     tx, ty = tip_position(p[Lp.FL], ca, sa)
     tlx, tly, dx, dyy = tip_local(tx, ty, y[0], y[1], cphi, sphi)
     rvx = -dal * ty - y[3]  # d/dt (T - X)
     rvy = dal * tx - y[4]
     tlx_d = cphi * rvx + sphi * rvy + y[5] * tly
     tly_d = -sphi * rvx + cphi * rvy - y[5] * tlx
-    gap, rate = tip_gap(tlx, tly, tlx_d, tly_d, hl, hw)
-    edge = iw[IW_EDGE]
-    if gap < 0.0 or cur != APART:
-        edge = tip_edge_choice(y[0], y[1], cphi, sphi, tlx, tly, hl, hw)
-    D, nex, ney = tip_edge_normal(edge, tlx, tly, hl, hw, cphi, sphi)
-    Dd = -((-dal * ty - (y[3] - y[5] * dyy)) * nex + (dal * tx - (y[4] + y[5] * dx)) * ney)
-    if gap >= 0.0:
-        D = -gap  # outside the load: minus the gap
-    return next_code(cur, D, Dd, True, p[Lp.KC], p[Lp.CD], p[Lp.LAW], d_gap, d_force), edge, gap, rate
+    return tip_gap(tlx, tly, tlx_d, tly_d, hl, hw)
 
 
 @kernel(inline=True)
-def slot_eval(k, y, p, iw, ca, sa, dal, cphi, sphi):
-    """(code, tag, gap, gap rate) of contact slot k at state y, its code moved on from the one
-    in iw (contacts.next_code, with numerics.CONTACT_HYSTERESIS)."""
-    d_gap = NU.CONTACT_HYSTERESIS * p[Lp.FL]
-    d_force = NU.CONTACT_HYSTERESIS * p[Lp.FFORCE]
-    if k < TIP:
-        return corner_slot(k, y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force)
-    return tip_slot(y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force)
+def rail_code(k, y, p, iw, cphi, sphi, d_gap, d_force):
+    """Code of rail slot k (§5.3): corner k - 4 below y = 0 at x <= 0."""
+    rx, ry, gx, gy, gvx, gvy = corner_motion(k % 4, y, 0.5 * p[Lp.LL], 0.5 * p[Lp.AA], cphi, sphi)
+    return next_code(iw[IW_CODE + k], -gy, -gvy, gx <= 0.0, p[Lp.KC], p[Lp.CD], p[Lp.LAW], d_gap, d_force)
 
 
 @kernel(inline=True)
@@ -119,17 +236,41 @@ def classify_after_rhs(t, y, p, iw, codes, gaps, rates, tags, aux):
 
 @kernel(inline=True)
 def classify_in(y, p, iw, codes, gaps, rates, tags, ca, sa, dal, cphi, sphi):
-    """classify's loop over the slots, in the frame (ca, sa, dal, cphi, sphi) of frame_at."""
-    edge = 0
+    """classify in the frame (ca, sa, dal, cphi, sphi) of frame_at: the manifold's codes and tag,
+    the rails' codes, every slot's gap; returns the manifold's tag."""
+    d_gap = NU.CONTACT_HYSTERESIS * p[Lp.FL]
+    d_force = NU.CONTACT_HYSTERESIS * p[Lp.FFORCE]
+    (codes[0], codes[1], codes[2], codes[3], codes[TIP], codes[PIVOT], tag,
+     tags[0], tags[1], tags[2], tags[3]) = manifold(y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force)
+    tags[TIP] = tag
+    tags[PIVOT] = tag
     for k in range(N_SLOTS):
-        c, e, g, r = slot_eval(k, y, p, iw, ca, sa, dal, cphi, sphi)
-        codes[k] = c
+        g, r = slot_gap(k, y, p, iw, ca, sa, dal, cphi, sphi)
         gaps[k] = g
         rates[k] = r
-        tags[k] = e
-        if k == TIP:
-            edge = e
-    return edge
+        if k >= RAIL0 and k < TIP:
+            codes[k] = rail_code(k, y, p, iw, cphi, sphi, d_gap, d_force)
+            tags[k] = 0
+    return tag
+
+
+@kernel()
+def changed_at(mask, y, p, iw, ca, sa, dal, cphi, sphi):
+    """Has any slot in mask (bit k: slot k) left its code, side or tag of iw at state y (the
+    manifold evaluated once for all the fence's slots)?"""
+    d_gap = NU.CONTACT_HYSTERESIS * p[Lp.FL]
+    d_force = NU.CONTACT_HYSTERESIS * p[Lp.FFORCE]
+    if mask & FENCE_BITS:
+        c0, c1, c2, c3, ct, cp, tag, s0, s1, s2, s3 = manifold(y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force)
+        if ((mask & 1 and slot_changed(0, c0, s0, iw)) or (mask & 2 and slot_changed(1, c1, s1, iw))
+                or (mask & 4 and slot_changed(2, c2, s2, iw)) or (mask & 8 and slot_changed(3, c3, s3, iw))
+                or (mask & (1 << TIP) and slot_changed(TIP, ct, tag, iw))
+                or (mask & (1 << PIVOT) and slot_changed(PIVOT, cp, tag, iw))):
+            return True
+    for k in range(RAIL0, TIP):
+        if mask & (1 << k) and rail_code(k, y, p, iw, cphi, sphi, d_gap, d_force) != iw[IW_CODE + k]:
+            return True
+    return False
 
 
 @kernel(inline=True)
@@ -140,7 +281,7 @@ def slot_changed(k, code, tag, iw):
         return True
     if k < RAIL0:
         return tag != iw[k]
-    return k == TIP and code != APART and tag != iw[IW_EDGE]
+    return k >= TIP and code != APART and tag != iw[IW_EDGE]
 
 
 @kernel(inline=True)
@@ -189,8 +330,8 @@ def new_push(iw, codes):
 
 @kernel(inline=True)
 def fence_pushed(iw):
-    """Does any load-fence slot (corners on the fence, the tip) carry force?"""
-    for k in (0, 1, 2, 3, TIP):
+    """Does any load-fence slot (the manifold's: corners on the fence, TIP, PIVOT) carry force?"""
+    for k in (0, 1, 2, 3, TIP, PIVOT):
         if iw[IW_CODE + k] == PUSH:
             return True
     return False

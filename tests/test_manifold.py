@@ -1,0 +1,92 @@
+"""One overlap, one force (docs/model.md §5.2): the fence meets the load through one manifold.
+
+A corner behind the fence line near the tip and the tip inside the load are two descriptions of
+one overlap; the fence pushes with the shallower of the two (the axis of least penetration), never
+with both. The geometry here is closed form: the fence at rest along +x (alpha = 0, T = (l, 0)),
+the load's lowest corner C = corner 2 a depth D behind the line and x short of the tip, the
+load turned by theta, so that its bottom edge rises from C at theta to the fence and its left
+edge (x' = -L/2) rises from C at 90 deg - theta. The tip T is inside the load when x < D cot theta,
+then D_T = x cos theta + D sin theta below the left edge, and the manifold's depth is
+min(D, D_T): one Hertz force k1 m^1.5 at rest, where summing both slots gave k1 (D^1.5 + D_T^1.5).
+"""
+import math
+
+import numpy as np
+import pytest
+
+from fencesweep import resolve
+from fencesweep.kernel.jit import python_callable
+from fencesweep.model.prepare import prepare
+from fencesweep.model.scenes.contacts import APART, N_SLOTS
+from fencesweep.model.scenes.cycle import layout as CL
+from fencesweep.model.scenes.cycle import rhs as R
+from fencesweep.model.scenes.cycle import slots as S
+
+pytestmark = pytest.mark.plain_python  # also run without Numba's JIT: tests/test_plain_python.py
+
+classify, rhs = python_callable(S.classify), python_callable(R.rhs)
+L, A, FL, K1 = 0.7, 0.1, 1.2, 4e6
+
+
+def fence_force(D, x, theta, L=L, A=A):
+    """The load-fence normal force sum [N] of the load at rest with corner 2 at (l - x, -D), turned by
+    theta, the fence at rest (rigid drive at t = 0); and the stage."""
+    vals = resolve("cycle", L=L, A=A, l=FL, k1=K1, drive="rigid", contact_law="hertz", m1=15.0, R_s=0.0, dP=0.3)
+    p = prepare(vals)
+    c, s = math.cos(theta), math.sin(theta)
+    C = np.array([FL - x, -D])
+    X = C - np.array([c * (-L / 2) - s * (-A / 2), s * (-L / 2) + c * (-A / 2)])
+    y = np.zeros(CL.N_STATE)
+    y[0], y[1], y[2] = X[0], X[1], theta
+    iw = np.zeros(CL.N_IW, dtype=np.int64)
+    iw[:4] = 1  # every corner on the +n side (5.2)
+    iw[CL.IW_MODE] = CL.FM_KINEMATIC
+    iw[CL.IW_LOAD] = 1
+    codes, tags = np.zeros(N_SLOTS, np.int64), np.zeros(N_SLOTS, np.int64)
+    gaps, rates = np.zeros(N_SLOTS), np.zeros(N_SLOTS)
+    for _ in range(2):  # enter the codes found, as an event does, and classify again (hysteresis)
+        tag = classify(0.0, y, p, iw, codes, gaps, rates, tags)
+        iw[CL.IW_CODE:CL.IW_CODE + N_SLOTS] = codes
+        iw[CL.IW_EDGE] = tag
+    dy, aux = np.zeros(CL.N_STATE), np.zeros(CL.N_AUX)
+    rhs(0.0, y, p, iw, dy, aux)
+    pushing = int(np.sum(codes[[0, 1, 2, 3, 8, 9]] != APART))
+    return aux[CL.AX_NF], pushing
+
+
+def test_the_issue_overlap_pushes_once():
+    # a corner 2 mm deep, 0.3 mm short of the tip, theta 0.3: the two slots gave 357.8 + 357.6 N
+    n, pushing = fence_force(2e-3, 0.3e-3, 0.3)
+    m = min(2e-3, 0.3e-3 * math.cos(0.3) + 2e-3 * math.sin(0.3))
+    assert pushing == 1
+    assert n == pytest.approx(K1 * m**1.5, rel=1e-9)
+    assert n < K1 * (2e-3) ** 1.5  # not the corner's and the tip's together
+
+
+@pytest.mark.parametrize("theta", [0.1, 0.3, 0.6, 1.0])
+@pytest.mark.parametrize("D", [0.5e-3, 2e-3, 5e-3])
+@pytest.mark.parametrize("frac", [0.02, 0.2, 0.5, 0.9, 1.5])
+def test_corner_near_the_tip_gives_one_force(theta, D, frac):
+    # x as a fraction of D cot(theta), the distance within which the tip is inside the load
+    x = frac * D / math.tan(theta)
+    n, pushing = fence_force(D, x, theta)
+    depth = D if x >= D / math.tan(theta) else min(D, x * math.cos(theta) + D * math.sin(theta))
+    assert pushing == 1
+    assert n == pytest.approx(K1 * depth**1.5, rel=1e-9)
+    assert n <= K1 * D**1.5 * (1 + 1e-12)  # never more than the corner alone
+
+
+def test_the_force_turns_at_the_tip_without_a_jump():
+    # along x through the switch from the corner (D) to the tip (D_T = D): the force is continuous
+    D, theta = 2e-3, 0.3
+    x_switch = D * (1 - math.sin(theta)) / math.cos(theta)
+    xs = x_switch * (1 + np.array([-1e-6, -1e-9, 1e-9, 1e-6]))
+    forces = [fence_force(D, x, theta)[0] for x in xs]
+    assert max(forces) - min(forces) < 1e-5 * forces[0]
+
+
+def test_a_face_flush_in_the_span_pushes_at_both_corners():
+    # theta = 0: the bottom face 1 mm behind the line, well inside the span: S3, two corners
+    n, pushing = fence_force(1e-3, 0.2, 0.0)
+    assert pushing == 2
+    assert n == pytest.approx(2 * K1 * (1e-3) ** 1.5, rel=1e-9)
