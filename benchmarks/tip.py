@@ -22,7 +22,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
-#: the cuts: (name, simulate's arguments) -- the issue's two and four more loads and drives
+#: the cuts: (name, simulate's arguments): small_far at R_s 0.5 on three drives, a long and a short load
 CUTS = (
     ("small_far rigid, R_s 0.5", dict(case="small_far", R_s=0.5, drive="rigid")),
     ("small_far flexible, R_s 0.5", dict(case="small_far", R_s=0.5, drive="flexible")),

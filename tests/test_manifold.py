@@ -90,3 +90,20 @@ def test_a_face_flush_in_the_span_pushes_at_both_corners():
     n, pushing = fence_force(1e-3, 0.2, 0.0)
     assert pushing == 2
     assert n == pytest.approx(2 * K1 * (1e-3) ** 1.5, rel=1e-9)
+
+
+@pytest.mark.parametrize("dP", [0.39, 0.45, 0.51, 0.53])
+def test_a_frictionless_elastic_graze_at_the_tip_gives_back_its_energy(dP):
+    # small_far past the tip (R_s 0.5), e = 1, no friction at the fence or the belt, a free fence:
+    # the kinetic energy of load and fence after the touch is the one before it (docs/model.md
+    # §5.2: a change of the manifold inside a contact does no work)
+    from fencesweep import simulate_resolved
+    vals = resolve("cycle", case="small_far", R_s=0.5, drive="free", mu1=0.0, mu2=0.0, e=1.0, dP=dP)
+    r, tr = simulate_resolved(vals, trajectory=True)
+    m1, I2 = vals["m1"], vals["m2"] * vals["l"] ** 2 / 3
+    I1 = m1 * (vals["L"] ** 2 + vals["A"] ** 2) / 12
+    ke = (0.5 * m1 * (tr.vx ** 2 + tr.vy ** 2) + 0.5 * I1 * tr.omega ** 2 + 0.5 * I2 * tr.alpha_dot ** 2).to_numpy()
+    touched = np.flatnonzero(tr.N_fence.to_numpy() > 0.0)
+    assert r["status"] == "ok" and len(touched) > 0 and r["contact_energy"] == 0.0
+    assert tr.N_fence.to_numpy()[-1] == 0.0  # the touch is over
+    assert abs(ke[-1] - ke[touched[0] - 1]) <= 1e-3 * ke[touched[0] - 1]

@@ -163,9 +163,8 @@ def _mechanical_energy(model, mode, y, t):
     E = 0.5 * model.m1 * (u * u + w * w) + 0.5 * model.I1 * om * om
     al, ald, aw, awd = model.fence(t, y, mode)
     E += 0.5 * model.I2 * ald ** 2 + 0.5 * mode.K2 * (aw - al) ** 2
-    engaged = [("cf", j) for j in range(4) if mode.cf_region[j] == ref.ON and mode.cf_state[j]]
+    engaged = mode.engaged()           # the points of the manifold's axis in use (§5.2)
     engaged += [("rl", j) for j in range(4) if mode.rl_region[j] and mode.rl_state[j]]
-    engaged += [("tp", 0)] if mode.tip_inside else []
     for kind, j in engaged:
         D = max(model.contact_now(t, y, mode, kind, j)[0], 0.0)
         E += 0.4 * model.law.k * D ** 2.5
@@ -189,9 +188,9 @@ def test_energy_conserved_free_fence_frictionless_elastic(geom, kind):
         if md.fence_dyn and t1 > t0:
             energies += [_mechanical_energy(model, md, sol(t0), t0),
                          _mechanical_energy(model, md, sol(t1), t1)]
-            kinds |= {"cf" for j in range(4) if md.cf_region[j] == ref.ON and md.cf_state[j]}
+            if md.n_fence_active():    # the fence's face (corners, U) or a load edge (the tip)
+                kinds |= {"cf" if md.axis == ref.AXIS_F else "tip"}
             kinds |= {"rail" for j in range(4) if md.rl_region[j] and md.rl_state[j]}
-            kinds |= {"tip"} if md.tip_inside and md.tip_state == ref.ACTIVE else set()
     assert kind in kinds
     assert max(energies) - min(energies) < 1e-6 * energies[0]
 
@@ -217,13 +216,72 @@ def test_contact_diagnostics_per_kind():
     assert r["max_pen_fence"] == r["max_pen_tip"] == r["max_pen_rail"] == 0.0
     assert r["min_gap_rail"] == pytest.approx(0.6, abs=1e-12)
     assert r["min_gap_fence"] > 0.0 and r["min_gap_tip"] > 0.0
-    # long_near touches all three kinds; the deepest of them is max_penetration
+    # long_near touches the fence and the rail.  Sliding on past the tip, the load flush on
+    # the fence covers the tip (0.24 mm deep), but one manifold pushes there (§5.2): the
+    # fence's face, not the tip as well.  The deepest contact is max_penetration
     r = ref.simulate_reference({"case": "long_near"}, rtol=1e-8)
-    assert r["touch_fence"] and r["touch_tip"] and r["touch_rail"]
+    assert r["touch_fence"] and r["touch_rail"] and not r["touch_tip"]
     assert r["min_gap_fence"] == r["min_gap_tip"] == r["min_gap_rail"] == 0.0
     deepest = max(r["max_pen_fence"], r["max_pen_tip"], r["max_pen_rail"])
     assert deepest == pytest.approx(r["max_penetration"], rel=1e-9)
-    assert r["max_pen_rail"] > 1e-4
+    assert r["max_pen_rail"] > 1e-4 and r["max_pen_tip"] > 1e-4
+    # small_far: the rising tip pushes into the load's bottom edge (a load edge's axis)
+    r = ref.simulate_reference({"case": "small_far"}, rtol=1e-8)
+    assert r["touch_fence"] and r["touch_tip"] and not r["touch_rail"]
+    assert r["max_pen_tip"] > 5e-4
+
+
+# --- §5.2 one manifold: the fence and the load push once -------------------------------
+
+def _overlap_near_tip(model, theta, depth, short, past_edge):
+    """The load at rest, fence at alpha = 0 (s = x, h = y): its corner C lies `depth` behind
+    the fence line and `short` short of the tip, and its edge C -> C' runs past the tip
+    at theta to the fence, rising (C' in front of the line).  past_edge "long": that edge
+    is the L edge, "short": the A edge.  The full state (rigid drive)."""
+    l = model.l
+    Cx, Cy = l - short, -depth
+    if past_edge == "long":      # x' along the edge: C is corner 2 (-L/2, -A/2)
+        phi, j = theta, 2
+    else:                        # y' along the edge: C is corner 3 (+L/2, -A/2)
+        phi, j = theta - math.pi / 2, 3
+    c, s = math.cos(phi), math.sin(phi)
+    ox, oy = model.cx[j], model.cy[j]
+    return [Cx - (c * ox - s * oy), Cy - (s * ox + c * oy), phi, 0.0, 0.0, 0.0, 0.0, 0.0], j
+
+
+@pytest.mark.parametrize("past_edge", ["long", "short"])
+@pytest.mark.parametrize("theta", [0.2, 0.3, 0.45])
+@pytest.mark.parametrize("depth", [1e-3, 2e-3, 3e-3])
+@pytest.mark.parametrize("short", [1e-4, 3e-4, 6e-4])
+def test_corner_and_tip_in_one_overlap_push_once(past_edge, theta, depth, short):
+    """docs/model.md §5.2: a corner 2 mm behind the fence line and 0.3 mm short of the tip,
+    its edge at 0.3 rad to the fence, also has the tip inside the load.  The old rule
+    summed the corner-fence and the tip-edge forces; one manifold gives a single force:
+    that of the axis of least penetration (5.7), here the tip on the load's edge at C
+    across the one that runs past the tip, at depth short cos(theta) + depth sin(theta)."""
+    p = ref.resolve_params({"contact_law": "hertz", "k1": 4.0e6, "L": 0.7, "A": 0.1,
+                            "l": 1.2, "drive": "rigid"})
+    model = ref.CycleModel(p)
+    y, jc = _overlap_near_tip(model, theta, depth, short, past_edge)
+    mode = model.mode_at(0.0, y, drive="rigid", drive_on=False)
+    # both descriptions of the overlap are there: the corner behind the line, T inside
+    assert mode.cf_state[jc] != ref.OFF and mode.tip_inside
+    D_corner = model.contact_now(0.0, y, mode, "cf", jc)[0]
+    assert D_corner == pytest.approx(depth, rel=1e-9)
+    Nf = model.evaluate(0.0, y, mode, want_rhs=False)[1][0]
+    pushing = [q for q in mode.axis_points(mode.axis) if mode.state(*q) == ref.ACTIVE]
+    assert len(pushing) == 1 and mode.n_fence_active() == 1 and mode.stage() == "S1"
+    D, Dd, N = model.contact_now(0.0, y, mode, *pushing[0])
+    assert Dd == 0.0 and Nf == pytest.approx(4.0e6 * D ** 1.5, rel=1e-12) == N
+    # the axis of least penetration; the corner's own force is not added
+    sn = ref._Snap(model, 0.0, y, mode)
+    ms = [model.measure(sn, mode, X) for X in mode.candidates()]
+    assert D == pytest.approx(min(ms), rel=1e-12)
+    tip_depth = short * math.cos(theta) + depth * math.sin(theta)
+    assert mode.axis != ref.AXIS_F and pushing[0][0] == "ep" and pushing[0][1] % 2 == 1
+    assert D == pytest.approx(tip_depth, rel=1e-9) and D < depth
+    corner_plus_tip = 4.0e6 * depth ** 1.5 + 4.0e6 * tip_depth ** 1.5
+    assert Nf < 4.0e6 * depth ** 1.5 < corner_plus_tip
 
 
 # --- independence ------------------------------------------------------------------------

@@ -9,13 +9,15 @@ fencesweep (tests/test_reference_model.py checks that).
 Method
 ------
 The model is piecewise smooth: contact onsets, force clipping ``N := max(N, 0)``,
-the side memory of the corners, the end of the rail at ``x = 0``, the tip's edge
-choice and the drive's kinks at ``t = 0, t_c`` all make the right-hand side jump or
-kink.  The integration therefore runs in *segments*: inside a segment every discrete
-choice (which contacts are engaged, clipped or off, each corner's side sigma_j, the
-tip's edge, the fence kinematic or dynamic, the drive moving or at rest) is frozen, so
-the right-hand side is smooth; each way that a frozen choice can become wrong is an
-event function of ``solve_ivp`` (terminal, with a direction).  At the event the mode
+the side memory of the corners, the end of the rail at ``x = 0``, the fence-load
+manifold of §5.2 (its axis, the edge the under-tip point U lies on and the term of its
+depth, the ends of each load edge's interval) and the drive's kinks at ``t = 0, t_c``
+all make the right-hand side jump or kink.  The integration therefore runs in
+*segments*: inside a segment every discrete choice (which contacts are engaged, clipped
+or off, each corner's side sigma_j, the manifold's axis and points, the fence
+kinematic or dynamic, the drive moving or at rest) is frozen, so the right-hand side
+is smooth; each way that a frozen choice can become wrong is an event function of
+``solve_ivp`` (terminal, with a direction).  At the event the mode
 is updated and the integration restarts, so every discontinuity lies on a segment
 boundary and the integrator's order is never broken inside a step.  Peaks (force,
 deflection, ...) are located on the dense output of each segment.
@@ -434,6 +436,15 @@ EVENT_BIAS = 1e-300     # infinitesimal hysteresis of the event functions (see e
 # At the reference tolerance (1e-10): 1e-13 m and 1e-6 N, far below any result's
 # resolution; at rtol = 1e-3: 1 um and 1 N, below that tolerance's own error.
 # An onset needs only D > 0 (EVENT_BIAS): its time is what the results report.
+# Events that are one instant in exact arithmetic (the tip entering the load through an
+# edge, the under-tip point U's depth and that edge's tip end reaching 0 with it; a corner
+# reaching the fence line and the fence's crossings of its two edges' lines reaching depth
+# 0) are located one by one and land within round-off of each other.  A geometric event
+# function (a length) within BATCH_TOL of its crossing at the located instant is applied
+# in the same batch, so that no intermediate mode (T inside the load, its edge's point
+# not yet in contact) lives for a zero-length segment and the manifold is chosen from
+# all of them at once (ties, (5.7)).  Force events (N) and outcomes need a true crossing.
+BATCH_TOL = 1e-14       # [m]
 N_FLOOR = 1e-6          # [N]
 N_PER_RTOL = 1e3        # [N]
 IMPLICIT_METHODS = ("Radau", "BDF")
@@ -447,23 +458,55 @@ STATE_SCALE = {"x": 1e-3, "y": 1e-3, "phi": 1e-3, "xd": 1e-3, "yd": 1e-3, "om": 
                "al": 1e-4, "ald": 1e-3, "Ec": 1e-3, "Ed": 1e-3}
 
 
+# §5.2 The fence against the load: one manifold.  Its axes are the load's edges e = 0..3
+# (0: x' = +L/2, 1: x' = -L/2, 2: y' = +A/2, 3: y' = -A/2) and the fence's face F.
+AXIS_F = 4
+AXIS_ORDER = (AXIS_F, 0, 1, 2, 3)       # ties go to the fence's face (5.7), then e = 0..3
+# eta of (5.7): the axis in use is kept until another penetrates less by this * l
+MANIFOLD_HYSTERESIS = 1e-10
+# the rectangle's edges as (corner, next corner) of CycleModel.cx / cy
+EDGE_CORNERS = ((0, 1), (1, 2), (2, 3), (3, 0))
+# The load's four edge lines k (numbered as the edges).  A point P' of the load's frame
+# has the margins (L/2 - P'_x, L/2 + P'_x, A/2 - P'_y, A/2 + P'_y), > 0 on the load's side
+# of line k; the margin of line e is the depth delta_e of (5.8).  Edge e's extent (5.17) is
+# bounded by the two lines across it: (the line of +w, the line of -w) of its
+# along-coordinate (y' for e = 0, 1; x' for e = 2, 3).
+EXTENT_LINES = ((2, 3), (2, 3), (0, 1), (0, 1))
+TINY = 1e-300
+
+
 class _Mode:
-    """The frozen discrete state of one integration segment."""
+    """The frozen discrete state of one integration segment.
+
+    The manifold of §5.2 is kept as the states of all its possible points, on every axis,
+    and the axis in use.  A point's state is OFF (D <= 0) or on; for the points of the
+    axis in use on means ACTIVE (N* > 0, pushing) or CLIPPED (N* <= 0), for the points of
+    the other axes it only says "in contact" (they exert no force) and is classified
+    again by N* when their axis is chosen.
+    """
 
     def __init__(self):
         self.cf_region = [ON] * 4
         self.cf_sigma = [1] * 4
-        self.cf_state = [OFF] * 4
+        self.cf_state = [OFF] * 4          # corner j as a point of the fence's face
         self.rl_region = [False] * 4       # x_G <= 0
         self.rl_state = [OFF] * 4
-        self.tip_inside = False
-        # which side of each of the load's four edge lines the tip is on (True: the
-        # rectangle's side); inside <=> all four.  One event per line, so a tip that
-        # grazes a corner of the load (in and out within one step) is still seen.
-        self.tip_lines = [False] * 4
-        self.tip_axis = 0                  # 0: load x' axis (edges +-L/2), 1: y' (+-A/2)
-        self.tip_sign = 1
-        self.tip_state = OFF
+        # which side of each of the load's four edge lines the pivot O (lines[0]) and
+        # the tip T (lines[1]) are on (True: the rectangle's side).  T inside the load
+        # <=> all four of lines[1]; the sides of O and T along an edge fix the ends of
+        # that edge's interval (5.17).  One event per line, so a tip that grazes a
+        # corner of the load (in and out within one step) is still seen.
+        self.lines = [[False] * 4, [False] * 4]
+        # the under-tip point U (5.16): the edge (C, C') it lies on, which term of the
+        # min gives D_U (0: the depth at U, 1: the depth of C'), its state
+        self.u_edge = None
+        self.u_term = 0
+        self.u_state = OFF
+        # the points of edge e's axis: the pivot end (0) and the tip end (1) of [u_a, u_b];
+        # ep_valid[e]: the interval clipped to e's extent is not empty
+        self.ep_valid = [False] * 4
+        self.ep_state = [[OFF, OFF] for _ in range(4)]
+        self.axis = None                   # None (no contact), 0..3 (E_e) or AXIS_F
         self.fence_dyn = False             # fence has its own state (alpha, alphadot)
         self.drive_on = True               # t < t_c
         self.B2 = 0.0
@@ -471,31 +514,101 @@ class _Mode:
 
     def copy(self):
         m = _Mode.__new__(_Mode)
-        m.__dict__.update({k: (list(v) if isinstance(v, list) else v)
+        m.__dict__.update({k: ([list(x) if isinstance(x, list) else x for x in v]
+                               if isinstance(v, list) else v)
                            for k, v in self.__dict__.items()})
         return m
+
+    @property
+    def tip_inside(self):
+        return all(self.lines[1])
+
+    def state(self, kind, j):
+        if kind == "cf":
+            return self.cf_state[j]
+        if kind == "u":
+            return self.u_state
+        if kind == "ep":
+            return self.ep_state[j // 2][j % 2]
+        return self.rl_state[j]
+
+    def set_state(self, kind, j, st):
+        if kind == "cf":
+            self.cf_state[j] = st
+        elif kind == "u":
+            self.u_state = st
+        elif kind == "ep":
+            self.ep_state[j // 2][j % 2] = st
+        else:
+            self.rl_state[j] = st
+
+    def axis_points(self, axis):
+        """The manifold points (kind, j) of one axis (5.7): for F the corners in span and
+        U, for E_e the two ends of its interval ("ep", 2 e + end)."""
+        if axis == AXIS_F:
+            pts = [("cf", j) for j in range(4) if self.cf_region[j] == ON]
+            if self.u_edge is not None:
+                pts.append(("u", 0))
+            return pts
+        if axis is None or not self.ep_valid[axis]:
+            return []
+        return [("ep", 2 * axis), ("ep", 2 * axis + 1)]
+
+    def candidates(self):
+        """The axes that have a point in contact (5.7), in the order of AXIS_ORDER."""
+        return [X for X in AXIS_ORDER
+                if any(self.state(*p) != OFF for p in self.axis_points(X))]
+
+    def in_contact(self):
+        """The pair overlaps (§5.2): a corner in span behind the line, D_U > 0, or T inside."""
+        return self.tip_inside or any(self.state(*p) != OFF for p in self.axis_points(AXIS_F))
+
+    def engaged(self):
+        """The points of the axis in use that are in contact (ACTIVE or CLIPPED)."""
+        return [p for p in self.axis_points(self.axis) if self.state(*p) != OFF]
 
     # Reading of docs/model.md: "contact" for stages (§10), A/B, contact_time, n_impacts and
     # the free fence's release (§3) is a FORCE-CARRYING contact (N > 0).  A contact
     # that is geometrically penetrating but clipped (D > 0, N = 0 after a separation)
     # counts as no contact; re-engagement from there is a new onset.
     def n_fence_active(self):
-        return sum(1 for j in range(4) if self.cf_region[j] == ON and self.cf_state[j] == ACTIVE) \
-            + (1 if self.tip_inside and self.tip_state == ACTIVE else 0)
+        """The manifold's pushing points (§10): the ACTIVE points of the axis in use."""
+        return sum(1 for p in self.axis_points(self.axis) if self.state(*p) == ACTIVE)
 
     def n_rail_active(self):
         return sum(1 for j in range(4) if self.rl_region[j] and self.rl_state[j] == ACTIVE)
 
     def stage(self):
-        """§10: S2 none, S1 one fence point, S3 >= 2 fence points, S4 fence + rail, rail.
-
-        The tip-edge contact is one fence contact point like a corner."""
+        """§10: S2 none, S1 one manifold point, S3 >= 2, S4 fence + rail, rail."""
         nf, nr = self.n_fence_active(), self.n_rail_active()
         if nf == 0:
             return "S2" if nr == 0 else "rail"
         if nr > 0:
             return "S4"
         return "S1" if nf == 1 else "S3"
+
+
+class _Snap:
+    """The scene at one (t, y) under a mode: the load, its corners, the fence, T and O in
+    the load's frame (5.6) and their margins to the load's four edge lines."""
+
+    def __init__(self, model, t, y, mode):
+        x, yc, ph, u, w, om = (float(v) for v in y[:6])
+        al, ald, aw, awd = (float(v) for v in model.fence(t, y, mode))
+        self.x, self.yc, self.u, self.w, self.om = x, yc, u, w, om
+        self.al, self.ald, self.aw, self.awd = al, ald, aw, awd
+        c, s = math.cos(ph), math.sin(ph)
+        ca, sa = math.cos(al), math.sin(al)
+        self.c, self.s, self.ca, self.sa = c, s, ca, sa
+        self.G = [model.corner(j, x, yc, c, s, u, w, om) for j in range(4)]
+        self.sj = [g[0] * ca + g[1] * sa for g in self.G]          # (5.1)
+        self.hj = [-g[0] * sa + g[1] * ca for g in self.G]
+        l, hL, hA = model.l, 0.5 * model.L, 0.5 * model.A
+        self.Tx, self.Ty = l * ca, l * sa                         # (5.5)
+        rx, ry = self.Tx - x, self.Ty - yc
+        self.Tp = (rx * c + ry * s, -rx * s + ry * c)             # T' (5.6)
+        self.Op = (-x * c - yc * s, x * s - yc * c)               # O' (P = 0)
+        self.g = [(hL - px, hL + px, hA - py, hA + py) for px, py in (self.Op, self.Tp)]
 
 
 class CycleModel:
@@ -524,6 +637,7 @@ class CycleModel:
         self.D_fail = 0.5 * min(self.L, self.A)     # §5: penetration limit
         self.D_hyst = EVENT_BIAS                    # set by simulate_cycle
         self.N_hyst = N_FLOOR
+        self.eta = MANIFOLD_HYSTERESIS * self.l     # (5.7)
         self.nfev = 0
 
     # ---- initial state (§1) ------------------------------------------------
@@ -569,53 +683,127 @@ class CycleModel:
         ry = s * ox + c * oy
         return x + rx, yc + ry, rx, ry, u - om * ry, w + om * rx
 
-    def tip_geometry(self, x, yc, c, s, al):
-        """Tip T in load coordinates, the inside margin and the SAT overlaps (§5.2)."""
-        l = self.l
-        Tx, Ty = l * math.cos(al), l * math.sin(al)
-        rx, ry = Tx - x, Ty - yc
-        px = rx * c + ry * s            # T in load axes
-        py = -rx * s + ry * c
-        ox = -x * c - yc * s            # pivot O in load axes
-        oy = x * s - yc * c
+    # A manifold point is returned as
+    #   (D, Dd, nx, ny, tx, ty, slip, rx, ry, fx, fy):
+    # its depth and rate, the direction of the normal force on the load (n), the friction
+    # direction (t) and the slip of the load's material point relative to the fence's
+    # along t, the point of application relative to the centroid (r), and the fence's
+    # point (f) at which the reaction acts (its moment about the pivot is -(f x F)).
+    def corner_point(self, sn, mode, j):
+        """Corner j on the fence's face (5.3), (5.4)."""
+        gx, gy, rx, ry, vx, vy = sn.G[j]
+        ca, sa = sn.ca, sn.sa
+        sg = mode.cf_sigma[j]
+        sj = sn.sj[j]
+        D = -sg * sn.hj[j]
+        Dd = -sg * ((-vx * sa + vy * ca) - sn.ald * sj)
+        # the reaction at the fence's point s d under the corner: -(s d) x (sigma N n + f d)
+        # = -sigma N s, the friction along the fence passes through the pivot
+        return (D, Dd, -sg * sa, sg * ca, ca, sa, vx * ca + vy * sa, rx, ry, sj * ca, sj * sa)
+
+    def crossing_edges(self, mode):
+        """The load's edges that cross the line s = l: (C, C') with C short of it and C'
+        beyond the tip (5.16), from the corners' regions."""
+        out = []
+        for a, b in EDGE_CORNERS:
+            ba, bb = mode.cf_region[a] == BEYOND, mode.cf_region[b] == BEYOND
+            if ba != bb:
+                out.append((b, a) if ba else (a, b))
+        return out
+
+    def u_depths(self, sn, mode, edge):
+        """(lambda, -sigma_C h(U), -sigma_C h(C')) of the under-tip point on edge (C, C')."""
+        jc, jc2 = edge
+        sg = mode.cf_sigma[jc]
+        s1, s2 = sn.sj[jc], sn.sj[jc2]
+        den = s2 - s1
+        if den == 0.0:
+            den = TINY
+        lam = (self.l - s1) / den
+        hU = sn.hj[jc] + lam * (sn.hj[jc2] - sn.hj[jc])
+        return lam, -sg * hU, -sg * sn.hj[jc2]
+
+    def u_point(self, sn, mode):
+        """The under-tip point U (5.16): pushes like a corner at s = l."""
+        jc, jc2 = mode.u_edge
+        sg = mode.cf_sigma[jc]
+        lam, dU, dC2 = self.u_depths(sn, mode, mode.u_edge)
+        g1, g2 = sn.G[jc], sn.G[jc2]
+        rx = g1[2] + lam * (g2[2] - g1[2])        # U - X: the load's material point at U
+        ry = g1[3] + lam * (g2[3] - g1[3])
+        vx, vy = sn.u - sn.om * ry, sn.w + sn.om * rx
+        ca, sa = sn.ca, sn.sa
+        if mode.u_term == 0:
+            D = dU
+            Dd = -sg * ((-vx * sa + vy * ca) - sn.ald * self.l)
+        else:                                     # C' is the shallower: its depth and rate
+            D = dC2
+            Dd = -sg * ((-g2[4] * sa + g2[5] * ca) - sn.ald * sn.sj[jc2])
+        return (D, Dd, -sg * sa, sg * ca, ca, sa, vx * ca + vy * sa, rx, ry,
+                self.l * ca, self.l * sa)
+
+    @staticmethod
+    def along_status(mode, p, e):
+        """Where point p (0: O, 1: T) lies along edge e's extent: +1 / -1 beyond the line
+        of +w / -w, 0 within."""
+        kp, km = EXTENT_LINES[e]
+        ln = mode.lines[p]
+        if not ln[kp]:
+            return 1
+        if not ln[km]:
+            return -1
+        return 0
+
+    def interval_valid(self, mode, e):
+        sO, sT = self.along_status(mode, 0, e), self.along_status(mode, 1, e)
+        return not (sO == sT != 0)
+
+    def edge_point(self, sn, mode, e, end):
+        """An end of edge e's interval (5.17): the pivot end (end 0) is O while O lies within
+        e's extent, else where the fence enters it; the tip end (end 1) is T, or where the
+        fence leaves e's extent.  The clip delta_e >= 0 moves an end only where its depth
+        is 0, so it is no point there: the end is taken before that clip and pushes while
+        its depth (5.8) is > 0.  Force (5.9), (5.10)."""
         hL, hA = 0.5 * self.L, 0.5 * self.A
-        g_in = (hL - px, hL + px, hA - py, hA + py)    # edge-line margins, > 0 inside
-        ovx = min(max(ox, px), hL) - max(min(ox, px), -hL)
-        ovy = min(max(oy, py), hA) - max(min(oy, py), -hA)
-        return Tx, Ty, rx, ry, px, py, g_in, ovx, ovy
-
-    def tip_contact(self, mode, x, yc, c, s, u, w, om, al, ald):
-        """Tip-edge contact quantities for the frozen edge of `mode`.
-
-        Returns D, Dd, n_e (world), t_e, slip along t_e, rT (T - centroid), T.
-        """
-        Tx, Ty, rx, ry, px, py, g_in, ovx, ovy = self.tip_geometry(x, yc, c, s, al)
-        sg = mode.tip_sign
-        if mode.tip_axis == 0:
-            D = 0.5 * self.L - sg * px
-            nx, ny = sg * c, sg * s                 # outward normal: +-e1
+        k = 1 if e < 2 else 0                      # along-coordinate: y' for e = 0, 1
+        wv = hA if e < 2 else hL
+        Op, Tp = sn.Op, sn.Tp
+        st = self.along_status(mode, end, e)
+        if st == 0:
+            uu = float(end)
         else:
-            D = 0.5 * self.A - sg * py
-            nx, ny = -sg * s, sg * c                # +-e2
-        tx, ty = -ny, nx
-        vTx, vTy = -self.l * ald * math.sin(al), self.l * ald * math.cos(al)
-        vlx, vly = u - om * ry, w + om * rx         # load material point at T
-        dvx, dvy = vlx - vTx, vly - vTy
+            den = Tp[k] - Op[k]
+            if den == 0.0:
+                den = TINY
+            uu = (st * wv - Op[k]) / den
+        px = Op[0] + uu * (Tp[0] - Op[0])          # P'(u)
+        py = Op[1] + uu * (Tp[1] - Op[1])
+        D = (hL - px, hL + px, hA - py, hA + py)[e]
+        c, s = sn.c, sn.s
+        nx, ny = ((c, s), (-c, -s), (-s, c), (s, -c))[e]      # outward normal n_e
+        Px, Py = uu * sn.Tx, uu * sn.Ty                        # P(u) = u T
+        rx, ry = Px - sn.x, Py - sn.yc
+        dvx = (sn.u - sn.om * ry) - (-sn.ald * Py)             # v_Q - v_P
+        dvy = (sn.w + sn.om * rx) - (sn.ald * Px)
         Dd = dvx * nx + dvy * ny
-        slip = dvx * tx + dvy * ty
-        return D, Dd, nx, ny, tx, ty, slip, rx, ry, Tx, Ty
+        tx, ty = -ny, nx                                       # t_e = k x n_e
+        return (D, Dd, -nx, -ny, tx, ty, dvx * tx + dvy * ty, rx, ry, Px, Py)
 
-    def choose_tip_edge(self, mode, x, yc, c, s, al):
-        """Separating-axis choice of the pushed edge (§5.2)."""
-        _, _, _, _, px, py, _, ovx, ovy = self.tip_geometry(x, yc, c, s, al)
-        # Reading of docs/model.md: a tie of the two overlaps (measure zero) goes to the
-        # y' axis (long edges); a tip exactly on the load's mid-line goes to the + edge.
-        if ovx < ovy:
-            mode.tip_axis = 0
-            mode.tip_sign = 1 if px >= 0.0 else -1
-        else:
-            mode.tip_axis = 1
-            mode.tip_sign = 1 if py >= 0.0 else -1
+    def point(self, sn, mode, kind, j):
+        if kind == "cf":
+            return self.corner_point(sn, mode, j)
+        if kind == "u":
+            return self.u_point(sn, mode)
+        return self.edge_point(sn, mode, j // 2, j % 2)
+
+    def measure(self, sn, mode, X, pts=None):
+        """m of (5.7): the depth of the axis's deepest point (-inf: no point)."""
+        ps = mode.axis_points(X)
+        if not ps:
+            return -math.inf
+        if pts is None:
+            return max(self.point(sn, mode, *q)[0] for q in ps)
+        return max(pts(*q)[0] for q in ps)
 
     # ---- right-hand side ------------------------------------------------------
     def evaluate(self, t, y, mode, want_rhs=True):
@@ -623,10 +811,9 @@ class CycleModel:
 
         Returns (dy, info) where info holds the fence / rail normal-force sums and
         the largest engaged penetration (for post-processing)."""
-        x, yc, ph, u, w, om = y[0], y[1], y[2], y[3], y[4], y[5]
-        al, ald, aw, awd = self.fence(t, y, mode)
-        c, s = math.cos(ph), math.sin(ph)
-        ca, sa = math.cos(al), math.sin(al)
+        sn = _Snap(self, t, y, mode)
+        u, w, om = sn.u, sn.w, sn.om
+        al, ald, aw, awd = sn.al, sn.ald, sn.aw, sn.awd
         law, mu2, eps = self.law, self.mu2, self.eps
         # §6 belt friction (Goyal-Ruina ellipse, (A9)): slip u = (xd - v, yd), spin om
         ux, uy = u - self.v, w
@@ -639,34 +826,26 @@ class CycleModel:
         Nf = 0.0
         Nr = 0.0
         Dmax = -math.inf
-        # §5.1 corner-fence
+        # §5.2 the manifold: the points of the axis in use, nothing from the others.
         # Reading of docs/model.md: the region 0 <= s <= l is closed (a corner exactly at the
         # pivot or the tip is on the fence), h = 0 is no contact (sigma h < 0 strict).
-        for j in range(4):
-            if mode.cf_region[j] != ON or mode.cf_state[j] == OFF:
-                continue
-            gx, gy, rx, ry, vx, vy = self.corner(j, x, yc, c, s, u, w, om)
-            sg = mode.cf_sigma[j]
-            sj = gx * ca + gy * sa
-            h = -gx * sa + gy * ca
-            D = -sg * h
-            Dd = -sg * ((-vx * sa + vy * ca) - ald * sj)
+        for kind, j in mode.engaged():
+            D, Dd, nx, ny, tx, ty, slip, rx, ry, px, py = self.point(sn, mode, kind, j)
             el, dm = law.parts(D, Dd)
             Dmax = max(Dmax, D)
-            if mode.cf_state[j] == CLIPPED:
+            if mode.state(kind, j) == CLIPPED:
                 Pc -= el * Dd
                 continue
             N = el + dm
             Pc += dm * Dd
             Nf += N
-            ws = vx * ca + vy * sa                           # slip along d
-            f = -mu2 * N * ws / math.sqrt(ws * ws + eps * eps)
-            fx = -sg * N * sa + f * ca                       # sigma N n + f d
-            fy = sg * N * ca + f * sa
+            f = -mu2 * N * slip / math.sqrt(slip * slip + eps * eps)
+            fx = N * nx + f * tx
+            fy = N * ny + f * ty
             Fx += fx
             Fy += fy
             Mz += rx * fy - ry * fx
-            tau -= sg * N * sj                               # moment on fence -sigma N s
+            tau -= px * fy - py * fx                         # reaction -F at the fence's point
         # §5.3 corner-rail
         # Reading of docs/model.md: x_G <= 0 is closed, y_G < 0 strict; leaving x_G = 0 with
         # D > 0 drops the rail force at once (the hand-over to the fence happens at
@@ -674,7 +853,7 @@ class CycleModel:
         for j in range(4):
             if not mode.rl_region[j] or mode.rl_state[j] == OFF:
                 continue
-            gx, gy, rx, ry, vx, vy = self.corner(j, x, yc, c, s, u, w, om)
+            gx, gy, rx, ry, vx, vy = sn.G[j]
             D, Dd = -gy, -vy
             el, dm = law.parts(D, Dd)
             Dmax = max(Dmax, D)
@@ -688,28 +867,6 @@ class CycleModel:
             Fx += fx
             Fy += N
             Mz += rx * N - ry * fx
-        # §5.2 tip-edge
-        # Reading of docs/model.md: the friction slip at the tip is the velocity of the
-        # load's material point at T relative to the tip T, along the pushed edge;
-        # the reaction of normal force and friction acts on the fence at T.
-        if mode.tip_inside:
-            D, Dd, nx, ny, tx, ty, slip, rx, ry, Tx, Ty = self.tip_contact(
-                mode, x, yc, c, s, u, w, om, al, ald)
-            el, dm = law.parts(D, Dd)
-            Dmax = max(Dmax, D)
-            if mode.tip_state == CLIPPED:
-                Pc -= el * Dd
-            else:
-                N = el + dm
-                Pc += dm * Dd
-                Nf += N
-                f = -mu2 * N * slip / math.sqrt(slip * slip + eps * eps)
-                fx = -N * nx + f * tx
-                fy = -N * ny + f * ty
-                Fx += fx
-                Fy += fy
-                Mz += rx * fy - ry * fx
-                tau += Tx * (-fy) - Ty * (-fx)               # reaction -F at T
         info = (Nf, Nr, Dmax, al, aw)
         if not want_rhs:
             return None, info
@@ -729,9 +886,20 @@ class CycleModel:
         return self.evaluate(t, y, mode)[0]
 
     # ---- events -----------------------------------------------------------------
+    @staticmethod
+    def _state_events(ev, prefix, j, st, pushes):
+        """D crossing 0 for a point, and N* crossing 0 while its axis is in use."""
+        if st == OFF:
+            ev.append((prefix + "_D", j, 1))
+        else:
+            ev.append((prefix + "_D", j, -1))
+            if pushes:
+                ev.append((prefix + "_N", j, -1 if st == ACTIVE else 1))
+
     def event_list(self, mode):
         """(kind, index, direction) of every way the frozen mode can end."""
         ev = []
+        on_F = mode.axis == AXIS_F
         for j in range(4):
             r = mode.cf_region[j]
             if r == BEHIND:
@@ -740,38 +908,42 @@ class CycleModel:
                 ev.append(("cf_sl", j, -1))
             else:
                 ev += [("cf_s0", j, -1), ("cf_sl", j, 1)]
-                st = mode.cf_state[j]
-                if st == OFF:
-                    ev.append(("cf_D", j, 1))
-                elif st == ACTIVE:
-                    ev += [("cf_N", j, -1), ("cf_D", j, -1)]
-                else:
-                    ev += [("cf_N", j, 1), ("cf_D", j, -1)]
+                self._state_events(ev, "cf", j, mode.cf_state[j], on_F)
         for j in range(4):
             if mode.rl_region[j]:
                 ev.append(("rl_x", j, 1))
-                st = mode.rl_state[j]
-                if st == OFF:
-                    ev.append(("rl_D", j, 1))
-                elif st == ACTIVE:
-                    ev += [("rl_N", j, -1), ("rl_D", j, -1)]
-                else:
-                    ev += [("rl_N", j, 1), ("rl_D", j, -1)]
+                self._state_events(ev, "rl", j, mode.rl_state[j], True)
             else:
                 ev.append(("rl_x", j, -1))
-        for k in range(4):
-            ev.append(("tp_line", k, -1 if mode.tip_lines[k] else 1))
-        if mode.tip_inside:
-            ev.append(("tp_sat", 0, 1 if mode.tip_axis == 0 else -1))
-            ev.append(("tp_side", 0, -1 if mode.tip_sign > 0 else 1))
-            ev.append(("tp_N", 0, -1 if mode.tip_state == ACTIVE else 1))
+        # the sides of O and T on the load's edge lines: T inside, the intervals' ends
+        for k in range(8):
+            ev.append(("ln", k, -1 if mode.lines[k // 4][k % 4] else 1))
+        if mode.u_edge is not None:
+            self._state_events(ev, "u", 0, mode.u_state, on_F)
+            ev.append(("u_term", 0, 1 if mode.u_term == 0 else -1))
+            if self.other_u_edge(mode) is not None:
+                ev.append(("u_edge", 0, -1))
+        for e in range(4):
+            if mode.ep_valid[e]:
+                for end in (0, 1):
+                    self._state_events(ev, "ep", 2 * e + end, mode.ep_state[e][end],
+                                       mode.axis == e)
+        if mode.axis is not None:
+            for X in mode.candidates():
+                if X != mode.axis:
+                    ev.append(("ax", X, 1))
         ev.append(("scraped", 0, 1))
         ev.append(("escaped", 0, 1))
-        if any(mode.cf_region[j] == ON and mode.cf_state[j] != OFF for j in range(4)) \
-                or any(mode.rl_region[j] and mode.rl_state[j] != OFF for j in range(4)) \
-                or mode.tip_inside:
+        if mode.engaged() or any(mode.rl_region[j] and mode.rl_state[j] != OFF
+                                 for j in range(4)):
             ev.append(("fail", 0, 1))
         return ev
+
+    def other_u_edge(self, mode):
+        for edge in self.crossing_edges(mode):
+            if edge != mode.u_edge:
+                return edge
+        return None
 
     def event_values(self, t, y, mode, evlist):
         """Values of the event functions of `evlist`, each shifted by an infinitesimal
@@ -782,9 +954,9 @@ class CycleModel:
         g = self._event_values(t, y, mode, evlist)
         out = []
         for gi, ev in zip(g, evlist):
-            if ev[0] in ("cf_N", "rl_N", "tp_N"):
+            if ev[0] in ("cf_N", "rl_N", "u_N", "ep_N"):
                 b = self.N_hyst
-            elif ev[0] in ("cf_D", "rl_D") and ev[2] < 0:
+            elif ev[0] in ("cf_D", "rl_D", "u_D", "ep_D") and ev[2] < 0:
                 b = self.D_hyst
             else:
                 b = EVENT_BIAS
@@ -792,65 +964,61 @@ class CycleModel:
         return out
 
     def _event_values(self, t, y, mode, evlist):
-        x, yc, ph, u, w, om = y[0], y[1], y[2], y[3], y[4], y[5]
-        al, ald, aw, awd = self.fence(t, y, mode)
-        c, s = math.cos(ph), math.sin(ph)
-        ca, sa = math.cos(al), math.sin(al)
-        law = self.law
-        corners = [self.corner(j, x, yc, c, s, u, w, om) for j in range(4)]
-        tipc = None
+        sn = _Snap(self, t, y, mode)
+        cache = {}
+
+        def pt(kind, j):
+            r = cache.get((kind, j))
+            if r is None:
+                r = cache[(kind, j)] = self.point(sn, mode, kind, j)
+            return r
+        meas = {}
+
+        def m(X):
+            if X not in meas:
+                meas[X] = self.measure(sn, mode, X, pts=pt)
+            return meas[X]
         out = []
         Dmax = None
         for kind, j, direction in evlist:
-            if kind.startswith("cf"):
-                gx, gy, rx, ry, vx, vy = corners[j]
-                sj = gx * ca + gy * sa
-                if kind == "cf_s0":
-                    out.append(sj)
-                    continue
-                if kind == "cf_sl":
-                    out.append(sj - self.l)
-                    continue
-                sg = mode.cf_sigma[j]
-                h = -gx * sa + gy * ca
-                D = -sg * h
-                if kind == "cf_D":
-                    out.append(D)
-                    continue
-                Dd = -sg * ((-vx * sa + vy * ca) - ald * sj)
-                out.append(self._n_event(D, Dd, direction))
-            elif kind.startswith("rl"):
-                gx, gy, rx, ry, vx, vy = corners[j]
-                if kind == "rl_x":
-                    out.append(gx)
-                elif kind == "rl_D":
-                    out.append(-gy)
-                else:
-                    out.append(self._n_event(-gy, -vy, direction))
-            elif kind.startswith("tp"):
-                if kind == "tp_N":
-                    D, Dd = self.tip_contact(mode, x, yc, c, s, u, w, om, al, ald)[:2]
-                    out.append(self._n_event(D, Dd, direction))
-                    continue
-                if tipc is None:
-                    tipc = self.tip_geometry(x, yc, c, s, al)
-                _, _, _, _, px, py, g_in, ovx, ovy = tipc
-                if kind == "tp_line":
-                    out.append(g_in[j])
-                elif kind == "tp_sat":
-                    out.append(ovx - ovy)
-                else:
-                    out.append(px if mode.tip_axis == 0 else py)
+            if kind == "cf_s0":
+                out.append(sn.sj[j])
+            elif kind == "cf_sl":
+                out.append(sn.sj[j] - self.l)
+            elif kind in ("cf_D", "u_D", "ep_D"):
+                out.append(pt(kind[:-2], j)[0])
+            elif kind in ("cf_N", "u_N", "ep_N"):
+                r = pt(kind[:-2], j)
+                out.append(self._n_event(r[0], r[1], direction))
+            elif kind == "rl_x":
+                out.append(sn.G[j][0])
+            elif kind == "rl_D":
+                out.append(-sn.G[j][1])
+            elif kind == "rl_N":
+                out.append(self._n_event(-sn.G[j][1], -sn.G[j][5], direction))
+            elif kind == "ln":
+                out.append(sn.g[j // 4][j % 4])
+            elif kind == "u_term":
+                _, dU, dC2 = self.u_depths(sn, mode, mode.u_edge)
+                out.append(dU - dC2)
+            elif kind == "u_edge":
+                # the deeper of the two edges that cross s = l (5.16)
+                out.append(self.u_depths(sn, mode, mode.u_edge)[1]
+                           - self.u_depths(sn, mode, self.other_u_edge(mode))[1])
+            elif kind == "ax":
+                # (5.7): another axis penetrates less than the one in use by eta
+                out.append(m(mode.axis) - m(j) - self.eta)
             elif kind == "scraped":
                 # Reading of docs/model.md: checked all the time, also when the load no
                 # longer touches the fence (it can slide off past the tip and still
                 # reach P_max by its own momentum).
-                out.append(yc - self.p["P_max"])       # §9 centroid reaches P_max
+                out.append(sn.yc - self.p["P_max"])          # §9 centroid reaches P_max
             elif kind == "escaped":
-                out.append(min(cr[0] for cr in corners) - self.l)   # §9 all corners x > l
+                out.append(min(g[0] for g in sn.G) - self.l)  # §9 all corners x > l
             elif kind == "fail":
                 # Reading of docs/model.md: the penetration limit applies to every engaged
-                # contact (fence, tip, rail), clipped ones included.
+                # contact (the manifold's points of the axis in use, the rail), clipped
+                # ones included.
                 if Dmax is None:
                     Dmax = self.evaluate(t, y, mode, want_rhs=False)[1][2]
                 out.append(Dmax - self.D_fail)
@@ -872,34 +1040,27 @@ class CycleModel:
         # Reading of docs/model.md: a corner that enters the fence region (from behind the
         # pivot, e.g. handed over from the rail) or the rail region already
         # penetrating starts with that D, the force jumping; it is clipped (N = 0) if
-        # the unclipped law is <= 0 there.
+        # the unclipped law is <= 0 there.  The same for a manifold point that appears
+        # at a finite depth (U, an end of an edge's interval).
         if D > 0.0:
             return ACTIVE if N > 0.0 else CLIPPED
         return OFF
 
     def contact_now(self, t, y, mode, kind, j):
-        """(D, Dd, N_raw) of contact (kind, j) at (t, y) under `mode`."""
-        x, yc, ph, u, w, om = y[0], y[1], y[2], y[3], y[4], y[5]
-        al, ald, aw, awd = self.fence(t, y, mode)
-        c, s = math.cos(ph), math.sin(ph)
-        if kind == "cf":
-            ca, sa = math.cos(al), math.sin(al)
-            gx, gy, rx, ry, vx, vy = self.corner(j, x, yc, c, s, u, w, om)
-            sj = gx * ca + gy * sa
-            h = -gx * sa + gy * ca
-            sg = mode.cf_sigma[j]
-            D = -sg * h
-            Dd = -sg * ((-vx * sa + vy * ca) - ald * sj)
-        elif kind == "rl":
-            gx, gy, rx, ry, vx, vy = self.corner(j, x, yc, c, s, u, w, om)
-            D, Dd = -gy, -vy
+        """(D, Dd, N_raw) of contact (kind, j) at (t, y) under `mode`: kind "cf" (corner j
+        on the fence's face), "u" (the under-tip point), "ep" (end j % 2 of edge j // 2's
+        interval) or "rl" (corner j on the rail)."""
+        sn = _Snap(self, t, y, mode)
+        if kind == "rl":
+            D, Dd = -sn.G[j][1], -sn.G[j][5]
         else:
-            D, Dd = self.tip_contact(mode, x, yc, c, s, u, w, om, al, ald)[:2]
+            D, Dd = self.point(sn, mode, kind, j)[:2]
         el, dm = self.law.parts(D, Dd)
         return D, Dd, el + dm
 
     def apply_event(self, t, y, mode, kind, j, direction):
-        """Update the frozen mode for an event that fired at (t, y)."""
+        """Update the frozen mode for an event that fired at (t, y).  The manifold's
+        derived choices (U's edge, the intervals, the axis) follow in refresh_manifold."""
         if kind == "cf_s0":
             if direction < 0:                      # on -> behind the pivot
                 mode.cf_region[j] = BEHIND
@@ -923,10 +1084,6 @@ class CycleModel:
                 mode.cf_region[j] = ON
                 D, Dd, N = self.contact_now(t, y, mode, "cf", j)
                 mode.cf_state[j] = self._classify(D, N)
-        elif kind == "cf_D":
-            mode.cf_state[j] = ACTIVE if direction > 0 else OFF
-        elif kind == "cf_N":
-            mode.cf_state[j] = ACTIVE if direction > 0 else CLIPPED
         elif kind == "rl_x":
             if direction > 0:                      # leaves the rail (x_G > 0)
                 mode.rl_region[j] = False
@@ -935,68 +1092,135 @@ class CycleModel:
                 mode.rl_region[j] = True
                 D, Dd, N = self.contact_now(t, y, mode, "rl", j)
                 mode.rl_state[j] = self._classify(D, N)
-        elif kind == "rl_D":
-            mode.rl_state[j] = ACTIVE if direction > 0 else OFF
-        elif kind == "rl_N":
-            mode.rl_state[j] = ACTIVE if direction > 0 else CLIPPED
-        elif kind == "tp_line":
-            mode.tip_lines[j] = direction > 0
-            inside = all(mode.tip_lines)
-            if inside and not mode.tip_inside:
-                mode.tip_inside = True
-                self._tip_reclassify(t, y, mode, entering=True)
-            elif mode.tip_inside and not inside:
-                mode.tip_inside = False
-                mode.tip_state = OFF
-        # Reading of docs/model.md: the separating-axis edge choice is re-evaluated all the
-        # time while the tip is inside, so the pushed edge can switch mid-contact
-        # (D and N then jump); it is not frozen at the tip's entry.
-        elif kind in ("tp_sat", "tp_side"):
-            # the crossing itself decides the new edge (re-evaluating the sign at the
-            # root could pick the old edge again and loop on a zero-length segment)
-            if kind == "tp_sat":
-                mode.tip_axis = 1 - mode.tip_axis
-                al = self.fence(t, y, mode)[0]
-                ph = y[2]
-                tg = self.tip_geometry(y[0], y[1], math.cos(ph), math.sin(ph), al)
-                pa = tg[4] if mode.tip_axis == 0 else tg[5]
-                mode.tip_sign = 1 if pa >= 0.0 else -1
-            else:
-                mode.tip_sign = -mode.tip_sign
-            D, Dd, N = self.contact_now(t, y, mode, "tp", 0)
-            mode.tip_state = ACTIVE if N > 0.0 else CLIPPED
-        elif kind == "tp_N":
-            mode.tip_state = ACTIVE if direction > 0 else CLIPPED
+        elif kind in ("cf_D", "rl_D", "u_D", "ep_D"):
+            mode.set_state(kind[:-2], j, ACTIVE if direction > 0 else OFF)
+        elif kind in ("cf_N", "rl_N", "u_N", "ep_N"):
+            mode.set_state(kind[:-2], j, ACTIVE if direction > 0 else CLIPPED)
+        elif kind == "ln":
+            mode.lines[j // 4][j % 4] = direction > 0
+        # Reading of docs/model.md: at a switch of the term of the min in (5.16), and of the
+        # edge U lies on, the crossing itself decides the new choice (re-evaluating at the
+        # root could pick the old one again and loop on a zero-length segment).
+        # (A region event of the same batch may have redefined U already: then
+        # refresh_manifold chooses afresh.)
+        elif kind == "u_term":
+            if mode.u_edge is not None:
+                mode.u_term = 1 - mode.u_term
+                if mode.u_state != OFF:
+                    D, Dd, N = self.contact_now(t, y, mode, "u", 0)
+                    mode.u_state = ACTIVE if N > 0.0 else CLIPPED
+        elif kind == "u_edge":
+            other = self.other_u_edge(mode)
+            if other is not None:
+                mode.u_edge = other
+                self._fresh_u(_Snap(self, t, y, mode), mode)
+        # "ax": the axis is chosen again in refresh_manifold (forced)
 
-    def _tip_reclassify(self, t, y, mode, entering):
-        al = self.fence(t, y, mode)[0]
-        ph = y[2]
-        self.choose_tip_edge(mode, y[0], y[1], math.cos(ph), math.sin(ph), al)
-        D, Dd, N = self.contact_now(t, y, mode, "tp", 0)
-        if N > 0.0 or (entering and D <= 0.0 and Dd > 0.0):
-            mode.tip_state = ACTIVE
+    def _fresh_u(self, sn, mode):
+        _, dU, dC2 = self.u_depths(sn, mode, mode.u_edge)
+        mode.u_term = 0 if dU <= dC2 else 1
+        D, Dd = self.u_point(sn, mode)[:2]
+        el, dm = self.law.parts(D, Dd)
+        mode.u_state = self._classify(D, el + dm)
+
+    def _pick_axis(self, ms, exclude=None):
+        """The axis of least penetration (5.7); within eta of the least, the first of
+        AXIS_ORDER (ties go to the fence's face)."""
+        cand = {X: v for X, v in ms.items() if X != exclude}
+        if not cand:
+            return exclude
+        lo = min(cand.values())
+        for X in AXIS_ORDER:
+            if X in cand and cand[X] <= lo + self.eta:
+                return X
+        return None
+
+    def refresh_manifold(self, t, y, mode, forced=False):
+        """Re-derive the manifold's choices after events (§5.2): the edge U lies on, the
+        points of the intervals that appear or vanish, and the axis: kept while it has a
+        point in contact and penetrates at most eta more than the least (5.7), else (or
+        at an "ax" event: forced) chosen again.  The points of a newly chosen axis are
+        classified by their force (PUSH or CLIPPED)."""
+        sn = _Snap(self, t, y, mode)
+        cross = self.crossing_edges(mode)
+        if mode.u_edge not in cross:
+            if cross:
+                mode.u_edge = max(cross, key=lambda ed: self.u_depths(sn, mode, ed)[1])
+                self._fresh_u(sn, mode)
+            else:
+                mode.u_edge, mode.u_term, mode.u_state = None, 0, OFF
+        for e in range(4):
+            valid = self.interval_valid(mode, e)
+            if valid != mode.ep_valid[e]:
+                mode.ep_valid[e] = valid
+                for end in (0, 1):
+                    st = OFF
+                    if valid:
+                        D, Dd = self.edge_point(sn, mode, e, end)[:2]
+                        el, dm = self.law.parts(D, Dd)
+                        st = self._classify(D, el + dm)
+                    mode.ep_state[e][end] = st
+        old = mode.axis
+        new = old
+        if not mode.in_contact():
+            new = None
         else:
-            mode.tip_state = CLIPPED
+            ms = {X: self.measure(sn, mode, X) for X in mode.candidates()}
+            if not ms:
+                new = None
+            elif forced and old in ms:
+                new = self._pick_axis(ms, exclude=old)
+            elif old not in ms or ms[old] > min(ms.values()) + self.eta:
+                new = self._pick_axis(ms)
+        if new != old:
+            mode.axis = new
+            for kind, j in mode.axis_points(new):
+                if mode.state(kind, j) != OFF:
+                    D, Dd = self.point(sn, mode, kind, j)[:2]
+                    el, dm = self.law.parts(D, Dd)
+                    mode.set_state(kind, j, ACTIVE if el + dm > 0.0 else CLIPPED)
+
+    def mode_at(self, t, y, drive="rigid", drive_on=True):
+        """A mode derived from the state alone (sides sigma_j := +1 in span and behind the
+        pivot, sign(h) beyond the tip, (5.2)); every contact classified by D and N, the
+        axis chosen afresh.  y: the full state of names(mode) or just the load's six."""
+        m = _Mode()
+        m.drive_on = drive_on
+        m.fence_dyn = drive == "flexible"
+        if m.fence_dyn:
+            m.B2, m.K2 = self.p["B2"], self.p["K2"]
+        y = np.asarray(y, dtype=float)
+        if len(y) == 6:
+            y = np.concatenate([y, [0.0, 0.0] if m.fence_dyn else [], [0.0, 0.0]])
+        sn = _Snap(self, t, y, m)
+        for j in range(4):
+            s_, h = sn.sj[j], sn.hj[j]
+            m.cf_region[j] = BEHIND if s_ < 0.0 else (ON if s_ <= self.l else BEYOND)
+            m.cf_sigma[j] = -1 if (s_ > self.l and h < 0.0) else 1
+            if m.cf_region[j] == ON:
+                D, Dd = self.corner_point(sn, m, j)[:2]
+                m.cf_state[j] = self._classify(D, sum(self.law.parts(D, Dd)))
+            gx, gy = sn.G[j][:2]
+            m.rl_region[j] = gx <= 0.0
+            if m.rl_region[j]:
+                m.rl_state[j] = self._classify(-gy, sum(self.law.parts(-gy, -sn.G[j][5])))
+        m.lines = [[gk > 0.0 for gk in sn.g[p]] for p in (0, 1)]
+        self.refresh_manifold(t, y, m)
+        return m
 
     def initial_mode(self, y0, drive):
-        m = _Mode()
-        x, yc, ph = y0[0], y0[1], y0[2]
-        c, s = math.cos(ph), math.sin(ph)
-        for j in range(4):
-            gx, gy = self.corner(j, x, yc, c, s, 0, 0, 0)[:2]
-            sj = gx                                   # alpha = 0: s = x_G, h = y_G
-            m.cf_region[j] = BEHIND if sj < 0.0 else (ON if sj <= self.l else BEYOND)
-            m.cf_sigma[j] = 1
-            m.cf_state[j] = OFF                       # valid start: D = -y_G <= 0
-            m.rl_region[j] = gx <= 0.0
-            m.rl_state[j] = OFF
-        g_in = self.tip_geometry(x, yc, c, s, 0.0)[6]
-        m.tip_lines = [gk > 0.0 for gk in g_in]
-        m.tip_inside = False                          # valid start: T = (l, 0) outside
-        m.fence_dyn = drive == "flexible"
-        if drive == "flexible":
-            m.B2, m.K2 = self.p["B2"], self.p["K2"]
-        return m
+        # Reading of docs/model.md: a valid start has no contact (D <= 0 everywhere, T
+        # outside the load); the corners and the pivot O may lie exactly on a line.
+        return self.mode_at(0.0, y0, drive)
+
+
+def _event_key(kind, j):
+    """Events of one contact slot at one instant are applied once (the first of the batch):
+    the region, D and N events of a corner, a rail contact or a manifold point, and each
+    of the lines, U's term, U's edge and the axis events on their own."""
+    if kind in ("u_term", "u_edge", "ax", "ln"):
+        return (kind, j)
+    return (kind.split("_")[0], j)
 
 
 def _state_atol(names, rtol, atol):
@@ -1088,6 +1312,11 @@ def simulate_cycle(p, method="DOP853", rtol=1e-10, atol=None, max_step=None,
             D0 = model.contact_now(0.0, y, mode, "cf", j)[0]
             if abs(D0) <= model.D_hyst:
                 mode.cf_state[j] = ACTIVE
+    at_rest_on_fence = [j for j in range(4) if mode.cf_region[j] == ON and mode.cf_state[j] != OFF]
+    model.refresh_manifold(0.0, y, mode)
+    if mode.axis == AXIS_F:          # pushing from t = 0+ (its N* is 0 at t = 0)
+        for j in at_rest_on_fence:
+            mode.cf_state[j] = ACTIVE
     if mode.n_fence_active() > 0:
         n_impacts, t_first = 1, 0.0
         if drive_kind == "free":       # §3: such a load releases the free fence at once
@@ -1184,8 +1413,9 @@ def simulate_cycle(p, method="DOP853", rtol=1e-10, atol=None, max_step=None,
             for k, (kind, j, direc) in enumerate(evlist):
                 if k == k0:
                     continue
-                if (direc > 0 and g_old[k] <= 0.0 < g_now[k]) or \
-                        (direc < 0 and g_old[k] >= 0.0 > g_now[k]):
+                tol = 0.0 if kind.endswith("_N") or kind in OUTCOME_EVENTS else BATCH_TOL
+                if (direc > 0 and g_old[k] <= 0.0 < g_now[k] + tol) or \
+                        (direc < 0 and g_old[k] >= 0.0 > g_now[k] - tol):
                     batch.append(k)
         nf_before = mode.n_fence_active()
         kinds = [evlist[k][0] for k in batch]
@@ -1200,15 +1430,21 @@ def simulate_cycle(p, method="DOP853", rtol=1e-10, atol=None, max_step=None,
                 outcome = oc
             break
         touched = set()
+        forced = False
         for k in batch:
             kind, j, direc = evlist[k]
-            key = (kind[:2], j)
+            key = _event_key(kind, j)
             if key in touched:
                 continue
             touched.add(key)
+            forced |= kind == "ax"
             model.apply_event(t, y, mode, kind, j, direc)
+        model.refresh_manifold(t, y, mode, forced=forced)
         # consistency check of the modes not touched by the events (diagnostic)
-        n_mode_fixes += _fix_modes(model, t, y, mode, touched)
+        fixes = _fix_modes(model, t, y, mode, touched)
+        if fixes:
+            n_mode_fixes += fixes
+            model.refresh_manifold(t, y, mode)
         nf_after = mode.n_fence_active()
         if nf_before == 0 and nf_after > 0:
             n_impacts += 1
@@ -1263,9 +1499,8 @@ def simulate_cycle(p, method="DOP853", rtol=1e-10, atol=None, max_step=None,
         if md.n_rail_active() > 0:
             v_, _ = _maximise(lambda tt: info(tt)[1], tsg)
             peak_r = max(peak_r, v_)
-        engaged = any(md.cf_region[j] == ON and md.cf_state[j] != OFF for j in range(4)) \
-            or any(md.rl_region[j] and md.rl_state[j] != OFF for j in range(4)) \
-            or md.tip_inside
+        engaged = bool(md.engaged()) \
+            or any(md.rl_region[j] and md.rl_state[j] != OFF for j in range(4))
         if engaged:
             v_, _ = _maximise(lambda tt: info(tt)[2], tsg)
             dmax_pen = max(dmax_pen, v_)
@@ -1422,19 +1657,22 @@ def _scan_events(model, mode, evlist, sol, t0, y0):
     return None
 
 
-CONTACT_KINDS = ("fence", "tip", "rail")     # §5.1 corner-fence, §5.2 tip-edge, §5.3 corner-rail
+# The contact kinds of the diagnostics: "fence", the fence's face F of §5.2 (the corners of
+# §5.1 and the under-tip point U); "tip", the load's edges E_e of §5.2 (the fence's tip or
+# another point of it inside the load); "rail", §5.3.
+CONTACT_KINDS = ("fence", "tip", "rail")
 
 
 def _clearances(model, md, ts, Y):
     """Signed clearance of each contact kind of §5 at the times ts (states Y[:, i])
     under the frozen mode md: {kind: array}, +inf where no contact of that kind is
-    possible (no corner in its region).  Negative means penetration, and then it is
-    -D of the engaged contact, so the clearance is continuous across onsets.
+    possible (no corner in its region).  Negative means penetration.
 
-    fence: min over the corners with 0 <= s <= l of sigma_j h_j (§5.1);
-    tip:   distance of the tip T from the load rectangle while T is outside, -D of the
-           pushed edge while it is inside (§5.2);
+    fence: min over the corners with 0 <= s <= l of sigma_j h_j (§5.1) and -D_U (5.16);
+    tip:   distance of the tip T from the load rectangle while T is outside, minus its
+           depth below the nearest edge while it is inside (the box distance, continuous);
     rail:  min over the corners with x_G <= 0 of y_G (§5.3).
+    These are geometric: they do not depend on the axis in use.
     """
     n = len(ts)
     x, yc, ph = Y[0], Y[1], Y[2]
@@ -1447,22 +1685,30 @@ def _clearances(model, md, ts, Y):
     c, s = np.cos(ph), np.sin(ph)
     ca, sa = np.cos(al), np.sin(al)
     out = {k: np.full(n, np.inf) for k in CONTACT_KINDS}
+    G = []
     for j in range(4):
         gx = x + c * model.cx[j] - s * model.cy[j]
         gy = yc + s * model.cx[j] + c * model.cy[j]
+        G.append((gx * ca + gy * sa, -gx * sa + gy * ca))
         if md.cf_region[j] == ON:
-            out["fence"] = np.minimum(out["fence"], md.cf_sigma[j] * (-gx * sa + gy * ca))
+            out["fence"] = np.minimum(out["fence"], md.cf_sigma[j] * G[j][1])
         if md.rl_region[j]:
             out["rail"] = np.minimum(out["rail"], gy)
     l, hL, hA = model.l, 0.5 * model.L, 0.5 * model.A
+    if md.u_edge is not None:
+        jc, jc2 = md.u_edge
+        sg = md.cf_sigma[jc]
+        (s1, h1), (s2, h2) = G[jc], G[jc2]
+        den = np.where(s2 - s1 == 0.0, TINY, s2 - s1)
+        hU = h1 + (l - s1) / den * (h2 - h1)
+        DU = -sg * hU if md.u_term == 0 else -sg * h2
+        out["fence"] = np.minimum(out["fence"], -DU)
     rx, ry = l * ca - x, l * sa - yc
     px, py = rx * c + ry * s, -rx * s + ry * c            # T in load axes
-    if md.tip_inside:
-        sg = md.tip_sign
-        out["tip"] = -(hL - sg * px) if md.tip_axis == 0 else -(hA - sg * py)
-    else:
-        out["tip"] = np.hypot(np.maximum(np.abs(px) - hL, 0.0),
-                              np.maximum(np.abs(py) - hA, 0.0))
+    dx, dy = np.abs(px) - hL, np.abs(py) - hA
+    inside = (dx < 0.0) & (dy < 0.0)
+    out["tip"] = np.where(inside, np.maximum(dx, dy),
+                          np.hypot(np.maximum(dx, 0.0), np.maximum(dy, 0.0)))
     return out
 
 
@@ -1470,8 +1716,10 @@ def contact_diagnostics(model, segments):
     """Per contact kind of §5 (fence, tip, rail): whether it touched, its maximum
     penetration and the minimum gap over the run, from the reference's own solution.
 
-    touch_<kind>:   a force-carrying contact of that kind (mode ACTIVE) over a time
-                    interval of positive length;
+    touch_<kind>:   a force-carrying contact of that kind over a time interval of positive
+                    length: fence, the fence's face is the manifold's axis and one of its
+                    points is ACTIVE; tip, a load edge is the axis and one of its points is
+                    ACTIVE; rail, a corner-rail contact is ACTIVE;
     max_pen_<kind>: max(0, -min clearance) [m], the deepest penetration of that kind;
     min_gap_<kind>: max(0, min clearance) [m], the closest approach without contact
                     (0 once it touches; NaN if no contact of that kind was ever possible).
@@ -1484,9 +1732,8 @@ def contact_diagnostics(model, segments):
     for (t0, t1, md, dsol, ts) in segments:
         if not t1 > t0:
             continue
-        touch["fence"] |= any(md.cf_region[j] == ON and md.cf_state[j] == ACTIVE
-                              for j in range(4))
-        touch["tip"] |= md.tip_inside and md.tip_state == ACTIVE
+        if md.n_fence_active() > 0:
+            touch["fence" if md.axis == AXIS_F else "tip"] = True
         touch["rail"] |= any(md.rl_region[j] and md.rl_state[j] == ACTIVE for j in range(4))
         st = np.unique(np.concatenate([[t0], ts[(ts > t0) & (ts < t1)], [t1]]))
         grid = np.append((st[:-1, None] + np.diff(st)[:, None] * fr[None, :]).ravel(), t1)
@@ -1520,22 +1767,19 @@ def contact_diagnostics(model, segments):
 def _fix_modes(model, t, y, mode, touched):
     """Re-derive the mode of every contact not changed by the current events and
     repair clear inconsistencies (beyond round-off).  Returns the number of repairs;
-    it should stay 0 (reported as n_mode_fixes)."""
+    it should stay 0 (reported as n_mode_fixes).  The caller refreshes the manifold's
+    choices after a repair."""
     tol_D = 1e-9
     fixes = 0
-    x, yc, ph = y[0], y[1], y[2]
-    al = model.fence(t, y, mode)[0]
-    c, s = math.cos(ph), math.sin(ph)
-    ca, sa = math.cos(al), math.sin(al)
+    sn = _Snap(model, t, y, mode)
     for j in range(4):
-        gx, gy = model.corner(j, x, yc, c, s, 0, 0, 0)[:2]
+        gx, gy = sn.G[j][:2]
         if ("cf", j) not in touched:
-            sj = gx * ca + gy * sa
+            sj, h = sn.sj[j], sn.hj[j]
             reg = mode.cf_region[j]
             if (reg == ON and (sj < -tol_D or sj > model.l + tol_D)) or \
                     (reg == BEHIND and sj > tol_D) or (reg == BEYOND and sj < model.l - tol_D):
                 fixes += 1
-                h = -gx * sa + gy * ca
                 if sj < 0.0:
                     mode.cf_region[j], mode.cf_sigma[j], mode.cf_state[j] = BEHIND, 1, OFF
                 elif sj > model.l:
@@ -1565,18 +1809,22 @@ def _fix_modes(model, t, y, mode, touched):
                 if (st == OFF and D > tol_D) or (st != OFF and D < -tol_D):
                     fixes += 1
                     mode.rl_state[j] = model._classify(D, N)
-    if ("tp", 0) not in touched:
-        g_in = model.tip_geometry(x, yc, c, s, al)[6]
-        for k in range(4):
-            if mode.tip_lines[k] != (g_in[k] > 0.0) and abs(g_in[k]) > tol_D:
-                fixes += 1
-                mode.tip_lines[k] = g_in[k] > 0.0
-        if mode.tip_inside != all(mode.tip_lines):
+    for k in range(8):
+        gk = sn.g[k // 4][k % 4]
+        if ("ln", k) not in touched and mode.lines[k // 4][k % 4] != (gk > 0.0) \
+                and abs(gk) > tol_D:
             fixes += 1
-            mode.tip_inside = all(mode.tip_lines)
-            mode.tip_state = OFF
-            if mode.tip_inside:
-                model._tip_reclassify(t, y, mode, entering=True)
+            mode.lines[k // 4][k % 4] = gk > 0.0
+    pts = ([("u", 0)] if mode.u_edge is not None else []) + \
+        [("ep", 2 * e + end) for e in range(4) if mode.ep_valid[e] for end in (0, 1)]
+    for kind, j in pts:
+        if (kind, j) in touched:
+            continue
+        D, Dd, N = model.contact_now(t, y, mode, kind, j)
+        st = mode.state(kind, j)
+        if (st == OFF and D > tol_D) or (st != OFF and D < -tol_D):
+            fixes += 1
+            mode.set_state(kind, j, model._classify(D, N))
     return fixes
 
 

@@ -134,7 +134,7 @@ def edge_margin(e, plx, ply, hl, hw):
 
 @kernel(inline=True)
 def fence_in_load(olx, oly, tlx, tly, hl, hw, grow):
-    """The fence's part inside the load, [u_a, u_b] of P(u) = u T (docs/model.md (5.17)), O' =
+    """The fence's part inside the load, [u_a, u_b] of P(u) = u T (docs/model.md (5.7)), O' =
     (olx, oly), T' = (tlx, tly) in the load's frame: u cut by each edge's half-plane, the load
     grown by `grow` on every side (a contact's hysteresis). Returns (u_a, u_b, the edge that cuts
     u_a, the edge that cuts u_b; -1 for the fence's own ends); empty when u_a > u_b: then the
@@ -178,7 +178,7 @@ def corner_s_h(j, y, hl, hw, ca, sa, cphi, sphi):
 
 @kernel()
 def under_tip_edge(y, hl, hw, fl, ca, sa, cphi, sphi, iw):
-    """The load edge that carries the under-tip point U (docs/model.md (5.16)): of the edges i
+    """The load edge that carries the under-tip point U (docs/model.md (5.7)): of the edges i
     (corners i, i + 1 mod 4) with one corner in the span (s < l) and one beyond (s >= l), the
     one deeper at s = l (with the in-span corner's side). Returns (i, its depth there) or (-1, -inf)."""
     best = -1
@@ -201,7 +201,7 @@ def under_tip_edge(y, hl, hw, fl, ca, sa, cphi, sphi, iw):
 
 @kernel()
 def under_tip(i, y, hl, hw, fl, ca, sa, dal, cphi, sphi, iw):
-    """The under-tip point U on load edge i (docs/model.md (5.16)): its offset from the centroid
+    """The under-tip point U on load edge i (docs/model.md (5.7)): its offset from the centroid
     (rx, ry), the load's velocity there (vx, vy), its depth D_U = min(own depth, that of the corner
     beyond the tip) and its rate, and the side sigma of the in-span corner C. The edge is the one
     frozen for the step (under_tip_edge chose it); lambda is not clamped."""

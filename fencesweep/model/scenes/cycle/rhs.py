@@ -95,7 +95,7 @@ def edge_point_sum(e, u, code, y, p, ca, sa, dal, cphi, sphi, aux):
 
 @kernel(inline=True)
 def under_tip_sum(i, y, p, iw, ca, sa, dal, cphi, sphi, aux):
-    """Add the force of the under-tip point U on load edge i (docs/model.md (5.16)): a corner's
+    """Add the force of the under-tip point U on load edge i (docs/model.md (5.7)): a corner's
     force (5.4) at s = l."""
     fl = p[Lp.FL]
     rx, ry, vx, vy, D, Dd, sg = under_tip(i, y, 0.5 * p[Lp.LL], 0.5 * p[Lp.AA], fl, ca, sa, dal, cphi, sphi, iw)
@@ -107,7 +107,7 @@ def under_tip_sum(i, y, p, iw, ca, sa, dal, cphi, sphi, aux):
 @kernel(inline=True)
 def tip_sum(y, p, iw, ca, sa, dal, cphi, sphi, aux):
     """Add the forces of the manifold's TIP and PIVOT slots (docs/model.md §5.2): the under-tip point
-    on the fence's face, or the ends of the fence's part below load edge e (5.17)."""
+    on the fence's face, or the ends of the fence's part below load edge e (5.7)."""
     ct = iw[IW_CODE + TIP]
     cp = iw[IW_CODE + PIVOT]
     if ct == APART and cp == APART:

@@ -73,7 +73,7 @@ def edge_end_code(e, u, tx, ty, y, p, iw, slot, cur, dal, cphi, sphi, d_gap, d_f
 
 @kernel(inline=True)
 def edge_ends(e, lo, hi, e_lo, e_hi, y, p, iw, cur, ca, sa, dal, cphi, sphi, d_gap, d_force):
-    """The point of axis E_e (docs/model.md (5.17)): of the ends u_a = lo, u_b = hi of the fence's
+    """The point of axis E_e (docs/model.md (5.7)): of the ends u_a = lo, u_b = hi of the fence's
     part inside the load (fence_in_load, cut there by edges e_lo, e_hi), the deeper below e (an
     end on e's own line is none), pushing with its own depth; the end in use (cur: E_e in use)
     kept until the other is deeper by CONTACT_HYSTERESIS l. Returns (code of the pivot end, code
@@ -114,7 +114,7 @@ def inside_all(lo, hi, e_lo, e_hi, olx, oly, tlx, tly, p, floor):
 
 @kernel(inline=True)
 def face_points(y, p, iw, cur, cur_tag, ca, sa, dal, cphi, sphi, d_gap, d_force):
-    """The under-tip point U of the fence's face (docs/model.md (5.16)): (its edge or -1, its code,
+    """The under-tip point U of the fence's face (docs/model.md (5.7)): (its edge or -1, its code,
     the edge's own depth at s = l, which the face's measure takes); its code in iw counts only
     while the face with U on that edge is in use."""
     hl = 0.5 * p[Lp.LL]
@@ -134,8 +134,8 @@ def manifold(y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force):
     """The fence's contact manifold with the load (docs/model.md (5.7)). The bodies touch where the
     fence's segment enters the load (fence_in_load, inside_all). The axis is the one of least
     penetration among the fence's face (the deepest of the load's corners in the span and the
-    edge's point under the tip, (5.16)) and the load's four edges (the deeper end of the fence's
-    part inside the load below each, (5.17)); the axis in use is kept until another is shallower
+    edge's point under the tip, (5.7)) and the load's four edges (the deeper end of the fence's
+    part inside the load below each, (5.7)); the axis in use is kept until another is shallower
     by numerics.CONTACT_HYSTERESIS l; ties go to the face. Its points push: the face's corners
     and U, or one end on the edge. Returns the codes of corners 0-3 on the fence, TIP, PIVOT, the
     tag (an edge e, or FACE + U's edge) and the corners' sides (5.2)."""
