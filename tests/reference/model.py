@@ -443,7 +443,9 @@ EVENT_BIAS = 1e-300     # infinitesimal hysteresis of the event functions (see e
 # function (a length) within BATCH_TOL of its crossing at the located instant is applied
 # in the same batch, so that no intermediate mode (T inside the load, its edge's point
 # not yet in contact) lives for a zero-length segment and the manifold is chosen from
-# all of them at once (ties, (5.7)).  Force events (N) and outcomes need a true crossing.
+# all of them at once (ties, (5.7)).  Only a function that moved towards its crossing
+# over the last step counts (a corner resting exactly on a line, D == 0, does not).  Force
+# events (N) and outcomes need a true crossing.
 BATCH_TOL = 1e-14       # [m]
 N_FLOOR = 1e-6          # [N]
 N_PER_RTOL = 1e3        # [N]
@@ -1413,10 +1415,13 @@ def simulate_cycle(p, method="DOP853", rtol=1e-10, atol=None, max_step=None,
             for k, (kind, j, direc) in enumerate(evlist):
                 if k == k0:
                     continue
-                tol = 0.0 if kind.endswith("_N") or kind in OUTCOME_EVENTS else BATCH_TOL
-                if (direc > 0 and g_old[k] <= 0.0 < g_now[k] + tol) or \
-                        (direc < 0 and g_old[k] >= 0.0 > g_now[k] - tol):
+                if (direc > 0 and g_old[k] <= 0.0 < g_now[k]) or \
+                        (direc < 0 and g_old[k] >= 0.0 > g_now[k]):
                     batch.append(k)
+                elif not (kind.endswith("_N") or kind in OUTCOME_EVENTS) and \
+                        direc * (g_now[k] - g_old[k]) > BATCH_TOL and \
+                        direc * g_old[k] <= 0.0 and direc * g_now[k] > -BATCH_TOL:
+                    batch.append(k)          # on its way across, within round-off of it
         nf_before = mode.n_fence_active()
         kinds = [evlist[k][0] for k in batch]
         oc = next((kd for kd in kinds if kd in OUTCOME_EVENTS), None)

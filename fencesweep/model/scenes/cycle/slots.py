@@ -148,22 +148,23 @@ def manifold(y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force):
     tx, ty = tip_position(p[Lp.FL], ca, sa)
     tlx, tly, _, _ = tip_local(tx, ty, y[0], y[1], cphi, sphi)
     olx, oly = pivot_local(y[0], y[1], cphi, sphi)
-    grow = d_gap if cur >= 0 else 0.0
+    grow = d_gap  # the load grown by the contacts' hysteresis: a fence on its boundary still meets it
     lo, hi, e_lo, e_hi = fence_in_load(olx, oly, tlx, tly, 0.5 * p[Lp.LL], 0.5 * p[Lp.AA], grow)
     if not (lo <= hi and inside_all(lo, hi, e_lo, e_hi, olx, oly, tlx, tly, p, -grow)):
         return APART, APART, APART, APART, APART, APART, cur_tag, s0, s1, s2, s3  # the fence misses the load
     ui, cu, d_own = face_points(y, p, iw, cur, cur_tag, ca, sa, dal, cphi, sphi, d_gap, d_force)
     best, m_best = FACE, max(max(D0, D1), max(max(D2, D3), d_own))
     m_cur = m_best if cur == FACE else math.inf
+    eta = NU.CONTACT_HYSTERESIS * p[Lp.FL]
     b_piv, b_tip, k_piv, k_tip = APART, APART, APART, APART
     for e in range(4):
         cp, ct, m = edge_ends(e, lo, hi, e_lo, e_hi, y, p, iw, cur == e, ca, sa, dal, cphi, sphi, d_gap, d_force)
         if cur == e:
             m_cur, k_piv, k_tip = m, cp, ct
-        if m < m_best:
+        if m < m_best - (eta if best == FACE else 0.0):  # the face unless an edge is shallower by eta
             best, m_best, b_piv, b_tip = e, m, cp, ct
     axis = best
-    if cur >= 0 and m_cur <= m_best + NU.CONTACT_HYSTERESIS * p[Lp.FL]:
+    if cur >= 0 and m_cur <= m_best + eta:
         axis, b_piv, b_tip = cur, k_piv, k_tip
     if axis == FACE:
         return c0, c1, c2, c3, cu, APART, FACE + max(ui, 0), s0, s1, s2, s3
