@@ -41,22 +41,71 @@ def tip_depth(row, vals):
     return L / 2 - abs(tx) if over_x < over_y else A / 2 - abs(ty)
 
 
-def penetrations(row, vals):
-    """Depth of every geometrically penetrated contact in a row (docs/model.md §5), by name."""
+def _fence_in_load(o, t, L, A, grow):
+    """The fence O-T inside the load (the load's frame), [u_a, u_b] and the edges cutting its ends."""
+    lo, hi, e_lo, e_hi = 0.0, 1.0, -1, -1
+    for e in range(4):
+        m = lambda p: (L / 2 - p[0], L / 2 + p[0], A / 2 - p[1], A / 2 + p[1])[e] + grow
+        c0, c1 = m(o), m(t) - m(o)
+        if c1 > 0 and -c0 / c1 > lo:
+            lo, e_lo = -c0 / c1, e
+        elif c1 < 0 and -c0 / c1 < hi:
+            hi, e_hi = -c0 / c1, e
+        elif c1 == 0 and c0 < 0:
+            return None
+    return (lo, hi, e_lo, e_hi) if lo <= hi else None
+
+
+def fence_manifold(row, vals):
+    """The depths of the fence's manifold points in a trajectory row (docs/model.md §5.2, written
+    here apart from the engine, every corner on the fence's +n side): the axis of least
+    penetration among the fence's face (corners in the span, the point under the tip) and the
+    load's four edges (the deeper end of the fence inside the load); [] when the fence misses it."""
     L, A, l = vals["L"], vals["A"], vals["l"]
     ca, sa = math.cos(row.alpha), math.sin(row.alpha)
     c, s = math.cos(row.phi), math.sin(row.phi)
-    out = {}
-    for j, (lx, ly) in enumerate(((L / 2, A / 2), (-L / 2, A / 2), (-L / 2, -A / 2), (L / 2, -A / 2))):
+    loc = [(L / 2, A / 2), (-L / 2, A / 2), (-L / 2, -A / 2), (L / 2, -A / 2)]
+    G = [(row.x + c * lx - s * ly, row.y + s * lx + c * ly) for lx, ly in loc]
+    sh = [(gx * ca + gy * sa, -gx * sa + gy * ca) for gx, gy in G]
+    to_local = lambda px, py: (c * (px - row.x) + s * (py - row.y), -s * (px - row.x) + c * (py - row.y))
+    o, t = to_local(0.0, 0.0), to_local(l * ca, l * sa)
+    inside = _fence_in_load(o, t, L, A, 1e-10 * l)
+    if inside is None:
+        return []
+    lo, hi, e_lo, e_hi = inside
+    ends = [(o[0] + u * (t[0] - o[0]), o[1] + u * (t[1] - o[1])) for u in (lo, hi)]
+    margins = [[(L / 2 - p[0], L / 2 + p[0], A / 2 - p[1], A / 2 + p[1])[e] for p in ends] for e in range(4)]
+    if any(max(-1.0 if e_lo == e else m[0], -1.0 if e_hi == e else m[1]) <= -1e-10 * l
+           for e, m in enumerate(margins)):
+        return []
+    face = [-h for sd, h in sh if 0 <= sd <= l]
+    under, u_own = None, -math.inf
+    for i in range(4):
+        (si, hi_), (sj, hj) = sh[i], sh[(i + 1) % 4]
+        if (si < l) != (sj < l):
+            (sc, hc), (sb, hb) = ((si, hi_), (sj, hj)) if si < l else ((sj, hj), (si, hi_))
+            own = -(hc + (l - sc) / (sb - sc) * (hb - hc))
+            if own > u_own:
+                u_own, under = own, min(own, -hb)
+    m_face = max(face + [u_own])
+    best, depths = m_face, [d for d in face + ([under] if under is not None else []) if d > 0]
+    for e in range(4):
+        cand = [m for k, m in enumerate(margins[e]) if (e_lo, e_hi)[k] != e]
+        if cand and max(cand) < best - 1e-10 * l:
+            best, depths = max(cand), [max(cand)] if max(cand) > 0 else []
+    return sorted(depths, reverse=True)
+
+
+def penetrations(row, vals):
+    """Depth of every penetrated contact in a row (docs/model.md §5), by name: the fence's
+    manifold points by rank ("m0" the deepest), the rail's corners."""
+    out = {f"m{k}": d for k, d in enumerate(fence_manifold(row, vals))}
+    c, s = math.cos(row.phi), math.sin(row.phi)
+    for j, (lx, ly) in enumerate(((vals["L"] / 2, vals["A"] / 2), (-vals["L"] / 2, vals["A"] / 2),
+                                  (-vals["L"] / 2, -vals["A"] / 2), (vals["L"] / 2, -vals["A"] / 2))):
         gx, gy = row.x + c * lx - s * ly, row.y + s * lx + c * ly
-        sd, h = gx * ca + gy * sa, -gx * sa + gy * ca
-        if 0 <= sd <= l and h < 0:
-            out[f"fence{j}"] = -h
         if gx <= 0 and gy < 0:
             out[f"rail{j}"] = -gy
-    tip = tip_depth(row, vals)
-    if tip > 0:
-        out["tip"] = tip
     return out
 
 

@@ -147,12 +147,11 @@ def test_long_near_slides_with_fence_and_rail_S4():
 @pytest.mark.parametrize("case", ["small_far", "long_near"])
 def test_energy_balance_closes(case, penetrations):
     # drive work + belt work = change of kinetic and elastic energy + all dissipation,
-    # checked from row to row of the trajectory. A contact of docs/model.md §5 can appear or
-    # vanish at a finite depth (a pressed corner slides past the tip; the tip enters the
-    # load through one edge while the separating-axis rule measures from another); there the
-    # elastic energy jumps by geometry alone, so those few increments are skipped and counted
-    # (long_near has five: the rail hands a pressed corner to the fence at the pivot, a
-    # corner passes the tip and hands over to the tip, the tip leaves the load sideways).
+    # checked from row to row of the trajectory. A point of the fence's manifold (docs/model.md
+    # §5.2) can appear or vanish at a finite depth where the manifold changes its axis (the
+    # face's two corners hand over to one edge point) or the rail hands a pressed corner to the
+    # fence at the pivot; there the elastic energy jumps by geometry alone, so those few
+    # increments are skipped and counted.
     vals = resolve("cycle", case)
     res, tr = simulate_resolved(vals, trajectory=True)
     m1, I1 = vals["m1"], vals["m1"] * (vals["L"] ** 2 + vals["A"] ** 2) / 12
