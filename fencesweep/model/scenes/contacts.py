@@ -176,23 +176,35 @@ def corner_s_h(j, y, hl, hw, ca, sa, cphi, sphi):
     return gx * ca + gy * sa, -gx * sa + gy * ca
 
 
+@kernel(inline=True)
+def edge_depth_at_tip(si, hi, sj, hj, sgi, sgj, fl):
+    """Depth at s = l of the load edge from a corner (si, hi) to one (sj, hj) that lies across the
+    line s = l, with the in-span corner's side (docs/model.md (5.7)); -inf when the edge does not
+    cross it."""
+    if (si < fl) == (sj < fl):
+        return -math.inf
+    if si < fl:
+        return -sgi * (hi + (fl - si) / (sj - si) * (hj - hi))
+    return -sgj * (hj + (fl - sj) / (si - sj) * (hi - hj))
+
+
 @kernel()
 def under_tip_edge(y, hl, hw, fl, ca, sa, cphi, sphi, iw):
     """The load edge that carries the under-tip point U (docs/model.md (5.7)): of the edges i
     (corners i, i + 1 mod 4) with one corner in the span (s < l) and one beyond (s >= l), the
     one deeper at s = l (with the in-span corner's side). Returns (i, its depth there) or (-1, -inf)."""
+    s0, h0 = corner_s_h(0, y, hl, hw, ca, sa, cphi, sphi)
+    s1, h1 = corner_s_h(1, y, hl, hw, ca, sa, cphi, sphi)
+    s2, h2 = corner_s_h(2, y, hl, hw, ca, sa, cphi, sphi)
+    s3, h3 = corner_s_h(3, y, hl, hw, ca, sa, cphi, sphi)
+    if max(max(s0, s1), max(s2, s3)) < fl:
+        return -1, -math.inf  # the load within the span: no edge runs on past the tip
     best = -1
     deep = -math.inf
-    for i in range(4):
-        j = (i + 1) % 4
-        si, hi = corner_s_h(i, y, hl, hw, ca, sa, cphi, sphi)
-        sj, hj = corner_s_h(j, y, hl, hw, ca, sa, cphi, sphi)
-        if (si < fl) == (sj < fl):
-            continue
-        if si < fl:
-            d = -iw[i] * (hi + (fl - si) / (sj - si) * (hj - hi))
-        else:
-            d = -iw[j] * (hj + (fl - sj) / (si - sj) * (hi - hj))
+    for i, d in ((0, edge_depth_at_tip(s0, h0, s1, h1, iw[0], iw[1], fl)),
+                 (1, edge_depth_at_tip(s1, h1, s2, h2, iw[1], iw[2], fl)),
+                 (2, edge_depth_at_tip(s2, h2, s3, h3, iw[2], iw[3], fl)),
+                 (3, edge_depth_at_tip(s3, h3, s0, h0, iw[3], iw[0], fl))):
         if d > deep:
             deep = d
             best = i

@@ -14,7 +14,7 @@ from fencesweep.kernel.jit import kernel
 from fencesweep.model import layout as Lp
 from fencesweep.model import results as Rs
 from fencesweep.model.scenes.contacts import (APART, CLIPPED, FACE, N_SLOTS, PIVOT, PUSH, RAIL0, TIP,
-                                              corner_fence_geometry, edge_margin, edge_point_rate, fence_in_load, next_code,
+                                              corner_fence_geometry, corner_s_h, edge_margin, edge_point_rate, fence_in_load, next_code,
                                               pivot_local, tip_edge_normal, tip_gap, tip_local, tip_position,
                                               under_tip, under_tip_edge)
 from fencesweep.model.scenes.cycle.layout import (AX_CA, AX_CPHI, AX_DAL, AX_FRAME, AX_SA, AX_SPHI, IW_CODE, IW_EDGE,
@@ -50,6 +50,13 @@ def corner_code(j, y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force):
 
 
 @kernel(inline=True)
+def corner_side_at(j, y, p, iw, ca, sa, cphi, sphi):
+    """Corner j's side memory (5.2) at this state, from its position alone."""
+    s, h = corner_s_h(j, y, 0.5 * p[Lp.LL], 0.5 * p[Lp.AA], ca, sa, cphi, sphi)
+    return corner_side(s, -iw[j] * h, iw[j], p[Lp.FL])
+
+
+@kernel(inline=True)
 def fence_in_use(iw):
     """Is the fence's manifold in use: a corner on the fence, TIP or PIVOT not APART?"""
     for k in (0, 1, 2, 3, TIP, PIVOT):
@@ -61,7 +68,7 @@ def fence_in_use(iw):
 @kernel(inline=True)
 def edge_end_code(e, u, tx, ty, y, p, iw, slot, cur, dal, cphi, sphi, d_gap, d_force):
     """Code of the fence point P(u) = u T pushing load edge e (docs/model.md (5.8), (5.9)); its
-    code in iw counts only while E_e is in use (cur)."""
+    code in iw counts only while it is the point in use (cur)."""
     hl = 0.5 * p[Lp.LL]
     hw = 0.5 * p[Lp.AA]
     px, py = u * tx, u * ty
@@ -72,103 +79,128 @@ def edge_end_code(e, u, tx, ty, y, p, iw, slot, cur, dal, cphi, sphi, d_gap, d_f
 
 
 @kernel(inline=True)
-def edge_ends(e, lo, hi, e_lo, e_hi, y, p, iw, cur, ca, sa, dal, cphi, sphi, d_gap, d_force):
-    """The point of axis E_e (docs/model.md (5.7)): of the ends u_a = lo, u_b = hi of the fence's
-    part inside the load (fence_in_load, cut there by edges e_lo, e_hi), the deeper below e (an
-    end on e's own line is none), pushing with its own depth; the end in use (cur: E_e in use)
-    kept until the other is deeper by CONTACT_HYSTERESIS l. Returns (code of the pivot end, code
-    of the tip end, one of them APART; the axis' measure)."""
-    hl = 0.5 * p[Lp.LL]
-    hw = 0.5 * p[Lp.AA]
-    tx, ty = tip_position(p[Lp.FL], ca, sa)
-    tlx, tly, dx, dyy = tip_local(tx, ty, y[0], y[1], cphi, sphi)
-    olx, oly = pivot_local(y[0], y[1], cphi, sphi)
-    Da = -math.inf if e_lo == e else edge_margin(e, olx + lo * (tlx - olx), oly + lo * (tly - oly), hl, hw)
-    Db = -math.inf if e_hi == e else edge_margin(e, olx + hi * (tlx - olx), oly + hi * (tly - oly), hl, hw)
+def end_depths(e, e_lo, e_hi, ma, mb):
+    """The depths below edge e of the ends of the fence's part inside the load (docs/model.md
+    (5.7)): ma, mb their margins (edge_margin); an end on e's own line is none (-inf)."""
+    return -math.inf if e_lo == e else ma, -math.inf if e_hi == e else mb
+
+
+@kernel(inline=True)
+def edge_measure(e, e_lo, e_hi, ma, mb, iw, cur, d_gap):
+    """Axis E_e (docs/model.md (5.7)): (its measure, whether it pushes with the pivot end): the
+    deeper end below e; the end in use (cur: E_e in use) kept until the other is deeper by
+    CONTACT_HYSTERESIS l; the fence along e's own line penetrates 0."""
+    Da, Db = end_depths(e, e_lo, e_hi, ma, mb)
     if Da == -math.inf and Db == -math.inf:
-        return APART, APART, 0.0  # the fence along e's own line: no penetration along e
+        return 0.0, False
     pivot_end = Da > Db
     if cur and iw[IW_CODE + PIVOT] != APART:
         pivot_end = Da >= Db - d_gap
     elif cur and iw[IW_CODE + TIP] != APART:
         pivot_end = Da > Db + d_gap
-    if pivot_end:
-        return edge_end_code(e, lo, tx, ty, y, p, iw, PIVOT, cur, dal, cphi, sphi, d_gap, d_force), APART, Da
-    return APART, edge_end_code(e, hi, tx, ty, y, p, iw, TIP, cur, dal, cphi, sphi, d_gap, d_force), Db
+    return (Da, True) if pivot_end else (Db, False)
 
 
 @kernel(inline=True)
-def inside_all(lo, hi, e_lo, e_hi, olx, oly, tlx, tly, p, floor):
-    """Does the fence's part inside the load, [lo, hi] (fence_in_load), lie deeper than floor below
-    every edge: is the fence inside the load, not on its boundary (docs/model.md (5.7): an edge
-    along which it penetrates no deeper separates the bodies)?"""
-    hl = 0.5 * p[Lp.LL]
-    hw = 0.5 * p[Lp.AA]
-    for e in range(4):
-        da = -1.0 if e_lo == e else edge_margin(e, olx + lo * (tlx - olx), oly + lo * (tly - oly), hl, hw)
-        db = -1.0 if e_hi == e else edge_margin(e, olx + hi * (tlx - olx), oly + hi * (tly - oly), hl, hw)
-        if max(da, db) <= floor:
-            return False
-    return True
+def incident_edge(y, ca, sa, cphi, sphi):
+    """The load's incident edge (docs/model.md (5.7)): the one whose outward normal is most
+    anti-parallel to sigma_L n, sigma_L the side of the fence line the load's centroid is on. On
+    it, a face of the load against the fence, both ends of the fence's part inside the load push."""
+    sg = 1.0 if -y[0] * sa + y[1] * ca >= 0.0 else -1.0
+    nx = -sg * (sa * cphi - ca * sphi)  # sigma_L n in the load's frame: (-sin(alpha - phi), cos(alpha - phi))
+    ny = sg * (ca * cphi + sa * sphi)
+    if abs(nx) >= abs(ny):  # ties to the lower edge
+        return 0 if nx < 0.0 else 1
+    return 2 if ny < 0.0 else 3
 
 
 @kernel(inline=True)
-def face_points(y, p, iw, cur, cur_tag, ca, sa, dal, cphi, sphi, d_gap, d_force):
-    """The under-tip point U of the fence's face (docs/model.md (5.7)): (its edge or -1, its code,
-    the edge's own depth at s = l, which the face's measure takes); its code in iw counts only
-    while the face with U on that edge is in use."""
+def face_point(ui, y, p, iw, held, ca, sa, dal, cphi, sphi, d_gap, d_force):
+    """Code of the under-tip point U on load edge ui (docs/model.md (5.7)); its code in iw counts
+    only while the face with U on that edge is in use (held)."""
     hl = 0.5 * p[Lp.LL]
     hw = 0.5 * p[Lp.AA]
-    fl = p[Lp.FL]
-    ui, d_own = under_tip_edge(y, hl, hw, fl, ca, sa, cphi, sphi, iw)
-    if ui < 0:
-        return -1, APART, -math.inf
-    _, _, _, _, Du, Ddu, _ = under_tip(ui, y, hl, hw, fl, ca, sa, dal, cphi, sphi, iw)
-    held = cur == FACE and cur_tag == FACE + ui
-    cu = next_code(iw[IW_CODE + TIP] if held else APART, Du, Ddu, True, p[Lp.KC], p[Lp.CD], p[Lp.LAW], d_gap, d_force)
-    return ui, cu, d_own
+    _, _, _, _, Du, Ddu, _ = under_tip(ui, y, hl, hw, p[Lp.FL], ca, sa, dal, cphi, sphi, iw)
+    return next_code(iw[IW_CODE + TIP] if held else APART, Du, Ddu, True, p[Lp.KC], p[Lp.CD], p[Lp.LAW], d_gap,
+                     d_force)
 
 
 @kernel()
 def manifold(y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force):
     """The fence's contact manifold with the load (docs/model.md (5.7)). The bodies touch where the
-    fence's segment enters the load (fence_in_load, inside_all). The axis is the one of least
-    penetration among the fence's face (the deepest of the load's corners in the span and the
-    edge's point under the tip, (5.7)) and the load's four edges (the deeper end of the fence's
-    part inside the load below each, (5.7)); the axis in use is kept until another is shallower
-    by numerics.CONTACT_HYSTERESIS l; ties go to the face. Its points push: the face's corners
-    and U, or one end on the edge. Returns the codes of corners 0-3 on the fence, TIP, PIVOT, the
-    tag (an edge e, or FACE + U's edge) and the corners' sides (5.2)."""
-    c0, D0, s0 = corner_code(0, y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force)
-    c1, D1, s1 = corner_code(1, y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force)
-    c2, D2, s2 = corner_code(2, y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force)
-    c3, D3, s3 = corner_code(3, y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force)
+    fence's segment enters the load (fence_in_load, the load grown by the hysteresis). The axis is
+    the one of least penetration among the fence's face (the deepest of the load's corners in the
+    span and the edge's point under the tip) and the load's four edges (the deeper end of the
+    fence's part inside the load below each); the axis in use is kept until another is shallower
+    by numerics.CONTACT_HYSTERESIS l; ties go to the face when its deepest point is a corner, to
+    the edge when it is U (whose depth along n outgrows any edge's). Its points push: the face's corners and
+    U, or one end on the edge. Returns the codes of corners 0-3 on the fence, TIP, PIVOT, the tag
+    (an edge e, or FACE + U's edge) and the corners' sides (5.2)."""
+    hl = 0.5 * p[Lp.LL]
+    hw = 0.5 * p[Lp.AA]
     cur_tag = iw[IW_EDGE]
     cur = (FACE if cur_tag >= FACE else cur_tag) if fence_in_use(iw) else -1
     tx, ty = tip_position(p[Lp.FL], ca, sa)
     tlx, tly, _, _ = tip_local(tx, ty, y[0], y[1], cphi, sphi)
     olx, oly = pivot_local(y[0], y[1], cphi, sphi)
-    grow = d_gap  # the load grown by the contacts' hysteresis: a fence on its boundary still meets it
-    lo, hi, e_lo, e_hi = fence_in_load(olx, oly, tlx, tly, 0.5 * p[Lp.LL], 0.5 * p[Lp.AA], grow)
-    if not (lo <= hi and inside_all(lo, hi, e_lo, e_hi, olx, oly, tlx, tly, p, -grow)):
-        return APART, APART, APART, APART, APART, APART, cur_tag, s0, s1, s2, s3  # the fence misses the load
-    ui, cu, d_own = face_points(y, p, iw, cur, cur_tag, ca, sa, dal, cphi, sphi, d_gap, d_force)
-    best, m_best = FACE, max(max(D0, D1), max(max(D2, D3), d_own))
+    lo, hi, e_lo, e_hi = fence_in_load(olx, oly, tlx, tly, hl, hw, d_gap)
+    ax, ay = olx + lo * (tlx - olx), oly + lo * (tly - oly)  # the ends of the fence's part inside the load
+    bx, by = olx + hi * (tlx - olx), oly + hi * (tly - oly)
+    if not (lo <= hi and inside_all(e_lo, e_hi, ax, ay, bx, by, hl, hw, -d_gap)):
+        return (APART, APART, APART, APART, APART, APART, cur_tag, corner_side_at(0, y, p, iw, ca, sa, cphi, sphi),
+                corner_side_at(1, y, p, iw, ca, sa, cphi, sphi), corner_side_at(2, y, p, iw, ca, sa, cphi, sphi),
+                corner_side_at(3, y, p, iw, ca, sa, cphi, sphi))  # the fence misses the load
+    c0, D0, s0 = corner_code(0, y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force)
+    c1, D1, s1 = corner_code(1, y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force)
+    c2, D2, s2 = corner_code(2, y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force)
+    c3, D3, s3 = corner_code(3, y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force)
+    ui, d_own = under_tip_edge(y, hl, hw, p[Lp.FL], ca, sa, cphi, sphi, iw)
+    m_corner = max(max(D0, D1), max(D2, D3))
+    best, m_best = FACE, max(m_corner, d_own)
+    by_corner = m_corner >= d_own  # ties go to the face when a corner is its deepest point, else to the edge
     m_cur = m_best if cur == FACE else math.inf
     eta = NU.CONTACT_HYSTERESIS * p[Lp.FL]
-    b_piv, b_tip, k_piv, k_tip = APART, APART, APART, APART
+    piv, piv_cur = False, False
+    cu = APART if ui < 0 else face_point(ui, y, p, iw, cur == FACE and cur_tag == FACE + ui, ca, sa, dal, cphi,
+                                         sphi, d_gap, d_force)
+    e_inc = incident_edge(y, ca, sa, cphi, sphi)
     for e in range(4):
-        cp, ct, m = edge_ends(e, lo, hi, e_lo, e_hi, y, p, iw, cur == e, ca, sa, dal, cphi, sphi, d_gap, d_force)
+        m, pe = edge_measure(e, e_lo, e_hi, edge_margin(e, ax, ay, hl, hw), edge_margin(e, bx, by, hl, hw), iw,
+                             cur == e, d_gap)
         if cur == e:
-            m_cur, k_piv, k_tip = m, cp, ct
-        if m < m_best - (eta if best == FACE else 0.0):  # the face unless an edge is shallower by eta
-            best, m_best, b_piv, b_tip = e, m, cp, ct
+            m_cur, piv_cur = m, pe
+        if m < m_best - (eta if (best == FACE and by_corner) else 0.0):
+            best, m_best, piv = e, m, pe
     axis = best
     if cur >= 0 and m_cur <= m_best + eta:
-        axis, b_piv, b_tip = cur, k_piv, k_tip
+        axis, piv = cur, piv_cur
     if axis == FACE:
         return c0, c1, c2, c3, cu, APART, FACE + max(ui, 0), s0, s1, s2, s3
-    return APART, APART, APART, APART, b_tip, b_piv, axis, s0, s1, s2, s3
+    if axis == e_inc:  # a face against the fence: both ends push
+        cp = APART if e_lo == axis else edge_end_code(axis, lo, tx, ty, y, p, iw, PIVOT, cur == axis, dal, cphi,
+                                                      sphi, d_gap, d_force)
+        ct = APART if e_hi == axis else edge_end_code(axis, hi, tx, ty, y, p, iw, TIP, cur == axis, dal, cphi,
+                                                      sphi, d_gap, d_force)
+        return APART, APART, APART, APART, ct, cp, axis, s0, s1, s2, s3
+    code = edge_end_code(axis, lo if piv else hi, tx, ty, y, p, iw, PIVOT if piv else TIP, cur == axis, dal, cphi,
+                         sphi, d_gap, d_force)
+    if piv:
+        return APART, APART, APART, APART, APART, code, axis, s0, s1, s2, s3
+    return APART, APART, APART, APART, code, APART, axis, s0, s1, s2, s3
+
+
+@kernel(inline=True)
+def inside_all(e_lo, e_hi, ax, ay, bx, by, hl, hw, floor):
+    """Does the fence's part inside the load (fence_in_load: its ends (ax, ay), (bx, by) in the
+    load's frame, cut by edges e_lo, e_hi) lie deeper than floor below every edge: is the fence
+    inside the load, not on its boundary (docs/model.md (5.7): an edge along which it penetrates
+    no deeper separates the bodies)?"""
+    for e in range(4):
+        da = -1.0 if e_lo == e else edge_margin(e, ax, ay, hl, hw)
+        db = -1.0 if e_hi == e else edge_margin(e, bx, by, hl, hw)
+        if max(da, db) <= floor:
+            return False
+    return True
 
 
 @kernel(inline=True)
@@ -245,13 +277,20 @@ def classify_in(y, p, iw, codes, gaps, rates, tags, ca, sa, dal, cphi, sphi):
      tags[0], tags[1], tags[2], tags[3]) = manifold(y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force)
     tags[TIP] = tag
     tags[PIVOT] = tag
-    for k in range(N_SLOTS):
-        g, r = slot_gap(k, y, p, iw, ca, sa, dal, cphi, sphi)
-        gaps[k] = g
-        rates[k] = r
-        if k >= RAIL0 and k < TIP:
-            codes[k] = rail_code(k, y, p, iw, cphi, sphi, d_gap, d_force)
-            tags[k] = 0
+    hl = 0.5 * p[Lp.LL]
+    hw = 0.5 * p[Lp.AA]
+    for j in range(4):  # each corner's motion once: its gap on the fence, its rail slot
+        rx, ry, gx, gy, gvx, gvy = corner_motion(j, y, hl, hw, cphi, sphi)
+        s, D, Dd = corner_fence_geometry(gx, gy, gvx, gvy, ca, sa, dal, iw[j])
+        gaps[j] = -D
+        rates[j] = -Dd
+        k = RAIL0 + j
+        codes[k] = next_code(iw[IW_CODE + k], -gy, -gvy, gx <= 0.0, p[Lp.KC], p[Lp.CD], p[Lp.LAW], d_gap, d_force)
+        gaps[k] = gy
+        rates[k] = gvy
+        tags[k] = 0
+    gaps[TIP], rates[TIP] = slot_gap(TIP, y, p, iw, ca, sa, dal, cphi, sphi)
+    gaps[PIVOT], rates[PIVOT] = 1.0, 0.0
     return tag
 
 
