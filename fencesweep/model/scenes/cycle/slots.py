@@ -86,32 +86,15 @@ def end_depths(e, e_lo, e_hi, ma, mb):
 
 
 @kernel(inline=True)
-def edge_measure(e, e_lo, e_hi, ma, mb, iw, cur, d_gap):
+def edge_measure(e, e_lo, e_hi, ma, mb, d_gap):
     """Axis E_e (docs/model.md (5.7)): (its measure, whether it pushes with the pivot end): the
-    deeper end below e; the end in use (cur: E_e in use) kept until the other is deeper by
-    CONTACT_HYSTERESIS l; the fence along e's own line penetrates 0."""
+    deeper end below e, the tip end unless the pivot end is deeper by CONTACT_HYSTERESIS l (a
+    bias, not a memory: the choice is the state's alone); the fence along e's own line
+    penetrates 0."""
     Da, Db = end_depths(e, e_lo, e_hi, ma, mb)
     if Da == -math.inf and Db == -math.inf:
         return 0.0, False
-    pivot_end = Da > Db
-    if cur and iw[IW_CODE + PIVOT] != APART:
-        pivot_end = Da >= Db - d_gap
-    elif cur and iw[IW_CODE + TIP] != APART:
-        pivot_end = Da > Db + d_gap
-    return (Da, True) if pivot_end else (Db, False)
-
-
-@kernel(inline=True)
-def incident_edge(y, ca, sa, cphi, sphi):
-    """The load's incident edge (docs/model.md (5.7)): the one whose outward normal is most
-    anti-parallel to sigma_L n, sigma_L the side of the fence line the load's centroid is on. On
-    it, a face of the load against the fence, both ends of the fence's part inside the load push."""
-    sg = 1.0 if -y[0] * sa + y[1] * ca >= 0.0 else -1.0
-    nx = -sg * (sa * cphi - ca * sphi)  # sigma_L n in the load's frame: (-sin(alpha - phi), cos(alpha - phi))
-    ny = sg * (ca * cphi + sa * sphi)
-    if abs(nx) >= abs(ny):  # ties to the lower edge
-        return 0 if nx < 0.0 else 1
-    return 2 if ny < 0.0 else 3
+    return (Da, True) if Da > Db + d_gap else (Db, False)
 
 
 @kernel(inline=True)
@@ -156,32 +139,19 @@ def manifold(y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force):
     c3, D3, s3 = corner_code(3, y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force)
     ui, d_own = under_tip_edge(y, hl, hw, p[Lp.FL], ca, sa, cphi, sphi, iw)
     m_corner = max(max(D0, D1), max(D2, D3))
-    best, m_best = FACE, max(m_corner, d_own)
-    by_corner = m_corner >= d_own  # ties go to the face when a corner is its deepest point, else to the edge
-    m_cur = m_best if cur == FACE else math.inf
     eta = NU.CONTACT_HYSTERESIS * p[Lp.FL]
-    piv, piv_cur = False, False
+    # the face's measure biased by eta: it wins ties when a corner is its deepest point, loses
+    # them when U is (a bias, not a memory: the choice is the state's alone)
+    best, m_best, piv = FACE, max(m_corner, d_own) + (-eta if m_corner >= d_own else eta), False
     cu = APART if ui < 0 else face_point(ui, y, p, iw, cur == FACE and cur_tag == FACE + ui, ca, sa, dal, cphi,
                                          sphi, d_gap, d_force)
-    e_inc = incident_edge(y, ca, sa, cphi, sphi)
     for e in range(4):
-        m, pe = edge_measure(e, e_lo, e_hi, edge_margin(e, ax, ay, hl, hw), edge_margin(e, bx, by, hl, hw), iw,
-                             cur == e, d_gap)
-        if cur == e:
-            m_cur, piv_cur = m, pe
-        if m < m_best - (eta if (best == FACE and by_corner) else 0.0):
+        m, pe = edge_measure(e, e_lo, e_hi, edge_margin(e, ax, ay, hl, hw), edge_margin(e, bx, by, hl, hw), d_gap)
+        if m < m_best:
             best, m_best, piv = e, m, pe
     axis = best
-    if cur >= 0 and m_cur <= m_best + eta:
-        axis, piv = cur, piv_cur
     if axis == FACE:
         return c0, c1, c2, c3, cu, APART, FACE + max(ui, 0), s0, s1, s2, s3
-    if axis == e_inc:  # a face against the fence: both ends push
-        cp = APART if e_lo == axis else edge_end_code(axis, lo, tx, ty, y, p, iw, PIVOT, cur == axis, dal, cphi,
-                                                      sphi, d_gap, d_force)
-        ct = APART if e_hi == axis else edge_end_code(axis, hi, tx, ty, y, p, iw, TIP, cur == axis, dal, cphi,
-                                                      sphi, d_gap, d_force)
-        return APART, APART, APART, APART, ct, cp, axis, s0, s1, s2, s3
     code = edge_end_code(axis, lo if piv else hi, tx, ty, y, p, iw, PIVOT if piv else TIP, cur == axis, dal, cphi,
                          sphi, d_gap, d_force)
     if piv:
