@@ -78,7 +78,9 @@ ONSET_STEP = 1e-6
 #: and clipped only when its Kelvin force is beyond it. A load resting at zero depth or zero
 #: force (long_near starts with a corner at the pivot, on the fence line) otherwise toggles
 #: on rounding noise, ~1e-16 of the scales, at every step. 1e-10 l is ~1e-4 of the position
-#: accuracy at the default tolerance: no result can see it.
+#: accuracy at the default tolerance: no result can see it. The same 1e-10 l grows the load in
+#: the fence's touch test and is the bias that breaks ties in the choice of the fence's manifold
+#: (docs/model.md (5.7)): a bias, not a memory, so that the choice is the state's alone.
 CONTACT_HYSTERESIS = 1e-10
 
 #: A touch (docs/model.md (11.10)): the load-fence force above TOUCH_FORCE x the free-fall force
