@@ -1,12 +1,18 @@
 """The fence's tip band, before and after "one overlap, one force" (docs/model.md §5.2).
 
     python benchmarks/tip.py [--before 8a6dc2a] [--step 0.0025]
+    python benchmarks/tip.py --tables [--before 8a6dc2a]    # the committed tables against REV's
 
 Runs dP cuts across the belt through the tip band, peak_force at each dP, in this tree and in an
 earlier revision's (revisions.export, its own process with PYTHONPATH set to its tree), and the
 hump measure of each cut: the largest peak(dP) / max(peak(dP - 0.02), peak(dP + 0.02)) over the
 cut (dP +- 0.02 read off the cut, which holds them). A ratio near 2 is one overlap pushed twice;
-near 1, no hump. Writes results/tip.md, results/tip.csv and results/figures/tip_cuts.png.
+near 1, no hump. Writes results/tip.csv, results/tip_table.md and results/figures/tip_cuts.png.
+
+With --tables: every committed table of results/ (the regenerated ones) against the same file at
+REV (git show), row by row in their (same) order: the rows whose peak_force, deflection_max or
+t_exit moved by more than 1e-3 (docs/model.md (15.15), with its floors) or whose outcome changed,
+and the largest move; writes results/tip_tables.md.
 """
 from __future__ import annotations
 
@@ -78,11 +84,51 @@ def hump(dps: np.ndarray, peaks: np.ndarray, side: float = SIDE) -> tuple[float,
     return best, at
 
 
+def tables(before: str) -> None:
+    """The committed tables against REV's (module docstring)."""
+    import io
+
+    import pandas as pd
+
+    from fencesweep.study.sweep.accuracy import relative_difference
+    lines = [f"| table | rows | outcome changed | peak_force > 1e-3 | deflection_max > 1e-3 | t_exit > 1e-3 | "
+             f"largest move (column, relative) |", "|---|---:|---:|---:|---:|---:|---|"]
+    for path in sorted((ROOT / "results").glob("*.parquet")):
+        name = path.relative_to(ROOT).as_posix()
+        old = subprocess.run(["git", "show", f"{before}:{name}"], cwd=ROOT, capture_output=True)
+        if old.returncode:
+            continue
+        a, b = pd.read_parquet(io.BytesIO(old.stdout)), pd.read_parquet(path)
+        if len(a) != len(b) or "peak_force" not in a:
+            lines.append(f"| {name} | {len(b)} (was {len(a)}) | | | | | not comparable row by row |")
+            continue
+        ff = a["freefall_force"].to_numpy(float) if "freefall_force" in a else np.full(len(a), np.nan)
+        counts, worst = {}, (0.0, "")
+        for col in ("peak_force", "deflection_max", "t_exit"):
+            if col not in a:
+                counts[col] = "-"
+                continue
+            d = np.array([relative_difference(x, y, col, f) for x, y, f in
+                          zip(a[col].to_numpy(float), b[col].to_numpy(float), ff)])
+            counts[col] = int(np.sum(~(d <= 1e-3)))
+            if np.nanmax(np.where(np.isfinite(d), d, 0.0), initial=0.0) > worst[0]:
+                worst = (float(np.nanmax(np.where(np.isfinite(d), d, 0.0))), col)
+        oc = int((a["outcome"].astype(str) != b["outcome"].astype(str)).sum()) if "outcome" in a else "-"
+        lines.append(f"| {name} | {len(b):,} | {oc} | {counts['peak_force']} | {counts['deflection_max']} | "
+                     f"{counts['t_exit']} | {worst[1]} {worst[0]:.3g} |")
+    print("\n".join(lines))
+    (ROOT / "results" / "tip_tables.md").write_text("\n".join(lines) + "\n")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--before", default="8a6dc2a")
     ap.add_argument("--step", type=float, default=0.0025)
+    ap.add_argument("--tables", action="store_true", help="compare the committed tables with REV's")
     a = ap.parse_args()
+    if a.tables:
+        tables(a.before)
+        return
     from revisions import export
     n = int(round((DP_HI - DP_LO) / a.step))
     dps = [round(DP_LO + i * a.step, 6) for i in range(n + 1)]

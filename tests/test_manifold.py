@@ -107,3 +107,32 @@ def test_a_frictionless_elastic_graze_at_the_tip_gives_back_its_energy(dP):
     assert r["status"] == "ok" and len(touched) > 0 and r["contact_energy"] == 0.0
     assert tr.N_fence.to_numpy()[-1] == 0.0  # the touch is over
     assert abs(ke[-1] - ke[touched[0] - 1]) <= 1e-3 * ke[touched[0] - 1]
+
+
+def _hump(cut):
+    """The largest peak(dP) / max(peak(dP - 0.02), peak(dP + 0.02)) over a cut {dP: peak}."""
+    out = 0.0
+    for dP, f in cut.items():
+        lo, hi = cut.get(round(dP - 0.02, 4)), cut.get(round(dP + 0.02, 4))
+        if lo is None or hi is None or not max(lo, hi) > 0.0:
+            continue
+        out = max(out, f / max(lo, hi))
+    return out
+
+
+@pytest.mark.parametrize("kw", [
+    dict(case="small_far", R_s=0.5, drive="flexible"),   # the issue's cut: 2.09 with the double count
+    dict(case="small_far", R_s=0.5, drive="free"),       # 1.70
+    dict(L=0.7, A=0.1, m1=15.0, R_s=0.3, drive="flexible"),  # a long load: 1.58
+    dict(L=0.1, A=0.1, m1=2.0, R_s=0.5, drive="flexible"),   # a short load: 4.10
+], ids=["small_far flexible", "small_far free", "long flexible", "short flexible"])
+def test_no_hump_across_the_tip_band(kw):
+    # dP across the belt through the tip band (docs/model.md §5.2): where a corner and the tip
+    # both pushed, the peak force doubled in a narrow band; one manifold leaves no hump
+    from fencesweep import simulate
+    cut = {}
+    for dP in np.round(np.arange(0.05, 0.6001, 0.0025), 4):
+        r = simulate("cycle", dP=float(dP), **kw)
+        assert r["status"] == "ok"
+        cut[float(dP)] = r["peak_force"]
+    assert _hump(cut) <= 1.10

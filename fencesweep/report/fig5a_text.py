@@ -145,12 +145,10 @@ def _worst_peak_stage(I: ReportInputs) -> str:
                        for d, (st, t, p, s_) in peaks.items()) + ".")
     two = [d for d, (st, _, p, s_) in peaks.items() if st == 2 and abs(s_ - p["l"]) < p["A"] / 2]
     if two:
-        txt += (f" A peak in S3 with that corner at the fence's tip ({', '.join(two)}): the fence's face presses on "
-                "the corner while the tip presses on the load's near face, and the two forces add. Whether that is "
-                "physics or one overlap counted twice by the two contacts is a question "
-                "for the contact model at the fence's tip; until it is answered, these worst cases are upper bounds"
-                + (", and the single-contact peaks (" + ", ".join(d for d in peaks if d not in two)
-                   + ") are the cleaner reading of the paper's arrangement." if len(two) < len(peaks) else "."))
+        txt += (f" A peak in S3 with that corner at the fence's tip ({', '.join(two)}): two points of one contact "
+                "manifold (docs/model.md §5.2), the face's corner and the load's edge under the tip; the fence "
+                "meets the load through one manifold, so a corner and the tip no longer both push for one overlap "
+                "(results/tip.md: the double count that raised the tip band's peaks up to 2x is gone).")
     return txt
 
 
