@@ -140,9 +140,11 @@ def manifold(y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force):
     ui, d_own = under_tip_edge(y, hl, hw, p[Lp.FL], ca, sa, cphi, sphi, iw)
     m_corner = max(max(D0, D1), max(D2, D3))
     eta = NU.CONTACT_HYSTERESIS * p[Lp.FL]
-    # the face's measure biased by eta: it wins ties when a corner is its deepest point, loses
-    # them when U is (a bias, not a memory: the choice is the state's alone)
-    best, m_best, piv = FACE, max(m_corner, d_own) + (-eta if m_corner >= d_own else eta), False
+    # the face's measure biased by eta: it wins ties while one of its corners is in contact (a
+    # face flush on the fence, across the tip too, is the face's), loses them when U is its only
+    # point (a bias, not a memory: the choice is the state's alone)
+    with_corner = c0 != APART or c1 != APART or c2 != APART or c3 != APART
+    best, m_best, piv = FACE, max(m_corner, d_own) + (-eta if with_corner else eta), False
     cu = APART if ui < 0 else face_point(ui, y, p, iw, cur == FACE and cur_tag == FACE + ui, ca, sa, dal, cphi,
                                          sphi, d_gap, d_force)
     for e in range(4):
