@@ -217,10 +217,11 @@ def test_contact_diagnostics_per_kind():
     assert r["min_gap_rail"] == pytest.approx(0.6, abs=1e-12)
     assert r["min_gap_fence"] > 0.0 and r["min_gap_tip"] > 0.0
     # long_near touches the fence and the rail.  Sliding on past the tip, the load flush on
-    # the fence covers the tip (0.24 mm deep), but one manifold pushes there (§5.2): the
-    # fence's face, not the tip as well.  The deepest contact is max_penetration
+    # the fence covers the tip (0.24 mm deep), and one manifold pushes there (§5.2): the
+    # fence's face while a corner of it touches, the load's edge once U is the face's only
+    # point.  The deepest contact is max_penetration
     r = ref.simulate_reference({"case": "long_near"}, rtol=1e-8)
-    assert r["touch_fence"] and r["touch_rail"] and not r["touch_tip"]
+    assert r["touch_fence"] and r["touch_rail"]
     assert r["min_gap_fence"] == r["min_gap_tip"] == r["min_gap_rail"] == 0.0
     deepest = max(r["max_pen_fence"], r["max_pen_tip"], r["max_pen_rail"])
     assert deepest == pytest.approx(r["max_penetration"], rel=1e-9)
@@ -258,24 +259,24 @@ def test_corner_and_tip_in_one_overlap_push_once(past_edge, theta, depth, short)
     its edge at 0.3 rad to the fence, also has the tip inside the load.  The old rule
     summed the corner-fence and the tip-edge forces; one manifold gives a single force:
     that of the axis of least penetration (5.7), here the tip on the load's edge at C
-    across the one that runs past the tip, at depth short cos(theta) + depth sin(theta)."""
+    across the one that runs past the tip (the fence enters the load through that edge),
+    at depth short cos(theta) + depth sin(theta): less than the corner's."""
     p = ref.resolve_params({"contact_law": "hertz", "k1": 4.0e6, "L": 0.7, "A": 0.1,
                             "l": 1.2, "drive": "rigid"})
     model = ref.CycleModel(p)
     y, jc = _overlap_near_tip(model, theta, depth, short, past_edge)
     mode = model.mode_at(0.0, y, drive="rigid", drive_on=False)
     # both descriptions of the overlap are there: the corner behind the line, T inside
-    assert mode.cf_state[jc] != ref.OFF and mode.tip_inside
-    D_corner = model.contact_now(0.0, y, mode, "cf", jc)[0]
-    assert D_corner == pytest.approx(depth, rel=1e-9)
+    assert mode.touch and mode.tip_inside
+    assert model.contact_now(0.0, y, mode, "cf", jc)[0] == pytest.approx(depth, rel=1e-9)
     Nf = model.evaluate(0.0, y, mode, want_rhs=False)[1][0]
-    pushing = [q for q in mode.axis_points(mode.axis) if mode.state(*q) == ref.ACTIVE]
+    pushing = [q for q in mode.axis_points() if mode.state(*q) == ref.ACTIVE]
     assert len(pushing) == 1 and mode.n_fence_active() == 1 and mode.stage() == "S1"
     D, Dd, N = model.contact_now(0.0, y, mode, *pushing[0])
     assert Dd == 0.0 and Nf == pytest.approx(4.0e6 * D ** 1.5, rel=1e-12) == N
     # the axis of least penetration; the corner's own force is not added
     sn = ref._Snap(model, 0.0, y, mode)
-    ms = [model.measure(sn, mode, X) for X in mode.candidates()]
+    ms = [model.measure(sn, mode, X) for X in ref.AXIS_ORDER]
     assert D == pytest.approx(min(ms), rel=1e-12)
     tip_depth = short * math.cos(theta) + depth * math.sin(theta)
     assert mode.axis != ref.AXIS_F and pushing[0][0] == "ep" and pushing[0][1] % 2 == 1

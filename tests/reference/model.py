@@ -11,7 +11,8 @@ Method
 The model is piecewise smooth: contact onsets, force clipping ``N := max(N, 0)``,
 the side memory of the corners, the end of the rail at ``x = 0``, the fence-load
 manifold of §5.2 (its axis, the edge the under-tip point U lies on and the term of its
-depth, the ends of each load edge's interval) and the drive's kinks at ``t = 0, t_c``
+depth, the ends of the fence's part inside the load, the end a load edge pushes with, the
+load's incident edge) and the drive's kinks at ``t = 0, t_c``
 all make the right-hand side jump or kink.  The integration therefore runs in
 *segments*: inside a segment every discrete choice (which contacts are engaged, clipped
 or off, each corner's side sigma_j, the manifold's axis and points, the fence
@@ -447,6 +448,13 @@ EVENT_BIAS = 1e-300     # infinitesimal hysteresis of the event functions (see e
 # over the last step counts (a corner resting exactly on a line, D == 0, does not).  Force
 # events (N) and outcomes need a true crossing.
 BATCH_TOL = 1e-14       # [m]
+# The manifold's choice crossings ("ax", "fb", "ee": differences of two depths) start the
+# next segment at their root, where the reverse crossing is 0 up to round-off (~1e-16 m);
+# several of them can be one instant in exact arithmetic (a face flush across the tip: the
+# face's bias, U's term and the axis all cross where the load is parallel to the fence),
+# located one by one a few ulps apart.  A choice crossing therefore counts once it is past
+# this (a round-off guard, 1e-4 eta, not part of the rule of (5.7)).
+CHOICE_TOL = BATCH_TOL  # [m]
 N_FLOOR = 1e-6          # [N]
 N_PER_RTOL = 1e3        # [N]
 IMPLICIT_METHODS = ("Radau", "BDF")
@@ -463,28 +471,39 @@ STATE_SCALE = {"x": 1e-3, "y": 1e-3, "phi": 1e-3, "xd": 1e-3, "yd": 1e-3, "om": 
 # §5.2 The fence against the load: one manifold.  Its axes are the load's edges e = 0..3
 # (0: x' = +L/2, 1: x' = -L/2, 2: y' = +A/2, 3: y' = -A/2) and the fence's face F.
 AXIS_F = 4
-AXIS_ORDER = (AXIS_F, 0, 1, 2, 3)       # ties go to the fence's face (5.7), then e = 0..3
-# eta of (5.7): the axis in use is kept until another penetrates less by this * l
+AXIS_ORDER = (AXIS_F, 0, 1, 2, 3)       # exact ties of the biased measures: F, then e = 0..3
+# eta of (5.7), this * l: a fixed bias, not a memory.  The face's measure is lowered by eta
+# when one of its corners is its deepest point and raised by eta when U is (so flush faces
+# stay on the face and U loses ties to the edges), and an edge pushes with its pivot end
+# only where that end is deeper than the tip end by more than eta.  The choices are
+# functions of the state alone.
 MANIFOLD_HYSTERESIS = 1e-10
 # the rectangle's edges as (corner, next corner) of CycleModel.cx / cy
 EDGE_CORNERS = ((0, 1), (1, 2), (2, 3), (3, 0))
-# The load's four edge lines k (numbered as the edges).  A point P' of the load's frame
-# has the margins (L/2 - P'_x, L/2 + P'_x, A/2 - P'_y, A/2 + P'_y), > 0 on the load's side
-# of line k; the margin of line e is the depth delta_e of (5.8).  Edge e's extent (5.17) is
-# bounded by the two lines across it: (the line of +w, the line of -w) of its
-# along-coordinate (y' for e = 0, 1; x' for e = 2, 3).
-EXTENT_LINES = ((2, 3), (2, 3), (0, 1), (0, 1))
+# The load's four edge lines k are numbered as the edges.  A point P' of the load's frame
+# has the margins (L/2 - P'_x, L/2 + P'_x, A/2 - P'_y, A/2 + P'_y): > 0 on the load's side
+# of line k, and the margin of line e is the depth delta_e of (5.8).  Along the fence,
+# P(u) = u T, every margin is linear in u: delta_k(P(u)) = a_k + u (b_k - a_k), with a_k,
+# b_k the margins of the pivot O and of the tip T.
 TINY = 1e-300
+# an "einc" crossing (a difference of two cosines) holds at its located instant within this
+INCIDENCE_TOL = 1e-9
+#: the variant in which the load's incident edge pushes with both ends of [u_a, u_b] (tried, and not
+#: docs/model.md's rule: it brought the corner-cut double count back, results/tip.md); off
+INCIDENT_BOTH_ENDS = False
 
 
 class _Mode:
     """The frozen discrete state of one integration segment.
 
-    The manifold of §5.2 is kept as the states of all its possible points, on every axis,
-    and the axis in use.  A point's state is OFF (D <= 0) or on; for the points of the
-    axis in use on means ACTIVE (N* > 0, pushing) or CLIPPED (N* <= 0), for the points of
-    the other axes it only says "in contact" (they exert no force) and is classified
-    again by N* when their axis is chosen.
+    The manifold of §5.2: whether the fence's segment is inside the load (`touch`), what
+    bounds the ends of the segment's part inside the load ([u_a, u_b]: O or T themselves,
+    or the edge line through which it enters or leaves), the axis in use, and the states
+    of that axis' points (corners in span and U for the fence's face; for a load edge one
+    end of [u_a, u_b], or both ends for the load's incident edge).  The points of the
+    other axes exert no force and are not tracked; they are classified when their axis is
+    chosen.  The incident edge and the load's side of the fence line it is derived from
+    are tracked all the time (they change only at located events).
     """
 
     def __init__(self):
@@ -493,22 +512,43 @@ class _Mode:
         self.cf_state = [OFF] * 4          # corner j as a point of the fence's face
         self.rl_region = [False] * 4       # x_G <= 0
         self.rl_state = [OFF] * 4
-        # which side of each of the load's four edge lines the pivot O (lines[0]) and
-        # the tip T (lines[1]) are on (True: the rectangle's side).  T inside the load
-        # <=> all four of lines[1]; the sides of O and T along an edge fix the ends of
-        # that edge's interval (5.17).  One event per line, so a tip that grazes a
-        # corner of the load (in and out within one step) is still seen.
+        # the side of each of the load's four edge lines of the pivot O (lines[0]) and the
+        # tip T (lines[1]): True on the rectangle's side.  T inside <=> all four of
+        # lines[1].  One event per line, so a tip that grazes a corner of the load (in and
+        # out within one step) is still seen.
         self.lines = [[False] * 4, [False] * 4]
+        # [u_a, u_b]: bind[0] the line through which the fence enters the load (-1: O is
+        # inside, u_a = 0), bind[1] the line through which it leaves (-1: T is inside,
+        # u_b = 1); touch: [u_a, u_b] is not empty, the bodies touch (§5.2)
+        self.bind = [-1, -1]
+        self.touch = False
         # the under-tip point U (5.16): the edge (C, C') it lies on, which term of the
         # min gives D_U (0: the depth at U, 1: the depth of C'), its state
         self.u_edge = None
         self.u_term = 0
         self.u_state = OFF
-        # the points of edge e's axis: the pivot end (0) and the tip end (1) of [u_a, u_b];
-        # ep_valid[e]: the interval clipped to e's extent is not empty
-        self.ep_valid = [False] * 4
-        self.ep_state = [[OFF, OFF] for _ in range(4)]
+        # a load edge's points: the ends of [u_a, u_b] it pushes with (0: pivot end,
+        # 1: tip end), a tuple: one end (the pivot end iff D_a > D_b + eta, else the tip
+        # end: followed by its located crossings "ee" and chosen afresh where e_cands, the
+        # ends not on the edge's own line, change), both ends that are points (the
+        # incident edge, e_both), or none; each end's state
+        self.e_ends = ()
+        self.e_cands = ()
+        self.e_both = False
+        self.ep_state = [OFF, OFF]
+        # the load's incident edge (§5.2): the edge whose outward normal is most
+        # anti-parallel to sigma_L n, with sigma_L the side of the fence line the load's
+        # centroid is on (+1: X.n >= 0)
+        self.sigma_L = 1
+        self.e_inc = 3
         self.axis = None                   # None (no contact), 0..3 (E_e) or AXIS_F
+        # corners behind the fence line (-sigma_j h_j > 0), for the face's bias while it is no axis
+        self.cf_behind = [False] * 4
+        # the face's deepest point is U (True: its bias +eta) or a corner in span (False:
+        # -eta), (5.7): a function of the state, followed by its located crossings ("fb")
+        # and derived afresh where the face's points change (face_key: those it is for)
+        self.face_u = False
+        self.face_key = None
         self.fence_dyn = False             # fence has its own state (alpha, alphadot)
         self.drive_on = True               # t < t_c
         self.B2 = 0.0
@@ -531,7 +571,7 @@ class _Mode:
         if kind == "u":
             return self.u_state
         if kind == "ep":
-            return self.ep_state[j // 2][j % 2]
+            return self.ep_state[j % 2]
         return self.rl_state[j]
 
     def set_state(self, kind, j, st):
@@ -540,34 +580,28 @@ class _Mode:
         elif kind == "u":
             self.u_state = st
         elif kind == "ep":
-            self.ep_state[j // 2][j % 2] = st
+            self.ep_state[j % 2] = st
         else:
             self.rl_state[j] = st
 
-    def axis_points(self, axis):
-        """The manifold points (kind, j) of one axis (5.7): for F the corners in span and
-        U, for E_e the two ends of its interval ("ep", 2 e + end)."""
-        if axis == AXIS_F:
-            pts = [("cf", j) for j in range(4) if self.cf_region[j] == ON]
-            if self.u_edge is not None:
-                pts.append(("u", 0))
-            return pts
-        if axis is None or not self.ep_valid[axis]:
+    def face_points(self):
+        """The fence's face's points (kind, j): the corners in span and U."""
+        pts = [("cf", j) for j in range(4) if self.cf_region[j] == ON]
+        if self.u_edge is not None:
+            pts.append(("u", 0))
+        return pts
+
+    def axis_points(self):
+        """The points of the axis in use: ("ep", 2 e + end) for a load edge."""
+        if self.axis == AXIS_F:
+            return self.face_points()
+        if self.axis is None:
             return []
-        return [("ep", 2 * axis), ("ep", 2 * axis + 1)]
-
-    def candidates(self):
-        """The axes that have a point in contact (5.7), in the order of AXIS_ORDER."""
-        return [X for X in AXIS_ORDER
-                if any(self.state(*p) != OFF for p in self.axis_points(X))]
-
-    def in_contact(self):
-        """The pair overlaps (§5.2): a corner in span behind the line, D_U > 0, or T inside."""
-        return self.tip_inside or any(self.state(*p) != OFF for p in self.axis_points(AXIS_F))
+        return [("ep", 2 * self.axis + end) for end in self.e_ends]
 
     def engaged(self):
         """The points of the axis in use that are in contact (ACTIVE or CLIPPED)."""
-        return [p for p in self.axis_points(self.axis) if self.state(*p) != OFF]
+        return [p for p in self.axis_points() if self.state(*p) != OFF]
 
     # Reading of docs/model.md: "contact" for stages (§10), A/B, contact_time, n_impacts and
     # the free fence's release (§3) is a FORCE-CARRYING contact (N > 0).  A contact
@@ -575,7 +609,7 @@ class _Mode:
     # counts as no contact; re-engagement from there is a new onset.
     def n_fence_active(self):
         """The manifold's pushing points (§10): the ACTIVE points of the axis in use."""
-        return sum(1 for p in self.axis_points(self.axis) if self.state(*p) == ACTIVE)
+        return sum(1 for p in self.axis_points() if self.state(*p) == ACTIVE)
 
     def n_rail_active(self):
         return sum(1 for j in range(4) if self.rl_region[j] and self.rl_state[j] == ACTIVE)
@@ -713,6 +747,12 @@ class CycleModel:
                 out.append((b, a) if ba else (a, b))
         return out
 
+    def other_u_edge(self, mode):
+        for edge in self.crossing_edges(mode):
+            if edge != mode.u_edge:
+                return edge
+        return None
+
     def u_depths(self, sn, mode, edge):
         """(lambda, -sigma_C h(U), -sigma_C h(C')) of the under-tip point on edge (C, C')."""
         jc, jc2 = edge
@@ -744,43 +784,67 @@ class CycleModel:
         return (D, Dd, -sg * sa, sg * ca, ca, sa, vx * ca + vy * sa, rx, ry,
                 self.l * ca, self.l * sa)
 
+    # ---- the fence's part inside the load, [u_a, u_b] of (5.7) ------------------
     @staticmethod
-    def along_status(mode, p, e):
-        """Where point p (0: O, 1: T) lies along edge e's extent: +1 / -1 beyond the line
-        of +w / -w, 0 within."""
-        kp, km = EXTENT_LINES[e]
-        ln = mode.lines[p]
-        if not ln[kp]:
-            return 1
-        if not ln[km]:
-            return -1
-        return 0
+    def line_sets(mode):
+        """From the sides of O and T: the lines that bound u_a from below (O outside, T
+        inside), those that bound u_b from above (T outside, O inside), and whether a line
+        has both outside (then the segment misses the load)."""
+        lo, up, miss = [], [], False
+        for k in range(4):
+            in_o, in_t = mode.lines[0][k], mode.lines[1][k]
+            if not in_o and not in_t:
+                miss = True
+            elif not in_o:
+                lo.append(k)
+            elif not in_t:
+                up.append(k)
+        return lo, up, miss
 
-    def interval_valid(self, mode, e):
-        sO, sT = self.along_status(mode, 0, e), self.along_status(mode, 1, e)
-        return not (sO == sT != 0)
+    @staticmethod
+    def line_param(sn, k):
+        """The u at which the fence crosses line k: a_k + u (b_k - a_k) = 0."""
+        a, b = sn.g[0][k], sn.g[1][k]
+        den = a - b
+        if den == 0.0:
+            den = TINY
+        return a / den
+
+    def end_u(self, sn, mode, end):
+        k = mode.bind[end]
+        return float(end) if k < 0 else self.line_param(sn, k)
+
+    @staticmethod
+    def depth_at(sn, e, uu):
+        """delta_e (5.8) of the fence's point P(u)."""
+        a = sn.g[0][e]
+        return a + uu * (sn.g[1][e] - a)
+
+    # ---- the load's incident edge (§5.2) ------------------------------------------
+    @staticmethod
+    def centroid_side(sn):
+        """X.n: the signed distance of the load's centroid from the fence's line [m]."""
+        return -sn.x * sn.sa + sn.yc * sn.ca
+
+    @staticmethod
+    def incidence(sn, sigma_L):
+        """n_e.(sigma_L n) of the four edges e: with n' = R(phi)^T n =
+        (-sin(alpha - phi), cos(alpha - phi)), (sigma n'_x, -sigma n'_x, sigma n'_y,
+        -sigma n'_y)."""
+        npx = -(sn.sa * sn.c - sn.ca * sn.s)
+        npy = sn.ca * sn.c + sn.sa * sn.s
+        return (sigma_L * npx, -sigma_L * npx, sigma_L * npy, -sigma_L * npy)
+
+    def incident_edge(self, sn, sigma_L):
+        """The argmin over e of n_e.(sigma_L n) (ties: the lowest e)."""
+        f = self.incidence(sn, sigma_L)
+        return min(range(4), key=lambda e: (f[e], e))
 
     def edge_point(self, sn, mode, e, end):
-        """An end of edge e's interval (5.17): the pivot end (end 0) is O while O lies within
-        e's extent, else where the fence enters it; the tip end (end 1) is T, or where the
-        fence leaves e's extent.  The clip delta_e >= 0 moves an end only where its depth
-        is 0, so it is no point there: the end is taken before that clip and pushes while
-        its depth (5.8) is > 0.  Force (5.9), (5.10)."""
-        hL, hA = 0.5 * self.L, 0.5 * self.A
-        k = 1 if e < 2 else 0                      # along-coordinate: y' for e = 0, 1
-        wv = hA if e < 2 else hL
-        Op, Tp = sn.Op, sn.Tp
-        st = self.along_status(mode, end, e)
-        if st == 0:
-            uu = float(end)
-        else:
-            den = Tp[k] - Op[k]
-            if den == 0.0:
-                den = TINY
-            uu = (st * wv - Op[k]) / den
-        px = Op[0] + uu * (Tp[0] - Op[0])          # P'(u)
-        py = Op[1] + uu * (Tp[1] - Op[1])
-        D = (hL - px, hL + px, hA - py, hA + py)[e]
+        """The pivot end (0) or tip end (1) of [u_a, u_b] on load edge e: depth (5.8), rate
+        (5.9), force (5.10)."""
+        uu = self.end_u(sn, mode, end)
+        D = self.depth_at(sn, e, uu)
         c, s = sn.c, sn.s
         nx, ny = ((c, s), (-c, -s), (-s, c), (s, -c))[e]      # outward normal n_e
         Px, Py = uu * sn.Tx, uu * sn.Ty                        # P(u) = u T
@@ -798,14 +862,61 @@ class CycleModel:
             return self.u_point(sn, mode)
         return self.edge_point(sn, mode, j // 2, j % 2)
 
-    def measure(self, sn, mode, X, pts=None):
-        """m of (5.7): the depth of the axis's deepest point (-inf: no point)."""
-        ps = mode.axis_points(X)
-        if not ps:
-            return -math.inf
-        if pts is None:
-            return max(self.point(sn, mode, *q)[0] for q in ps)
-        return max(pts(*q)[0] for q in ps)
+    def face_has_points(self, mode):
+        return mode.u_edge is not None or any(r == ON for r in mode.cf_region)
+
+    def measure(self, sn, mode, X):
+        """m of (5.7): the face as deep as its corners in span and the depth at U (not the
+        min with C'), an edge as deep as the deeper end of [u_a, u_b].  A face without a
+        corner in span and without U (the load wholly behind the pivot) is no axis: +inf."""
+        if X == AXIS_F:
+            ds = [-mode.cf_sigma[j] * sn.hj[j] for j in range(4) if mode.cf_region[j] == ON]
+            if mode.u_edge is not None:
+                ds.append(self.u_depths(sn, mode, mode.u_edge)[1])
+            return max(ds) if ds else math.inf
+        return max(self.depth_at(sn, X, self.end_u(sn, mode, end)) for end in (0, 1)
+                   if self.end_is_point(mode, end))
+
+    def face_corner_max(self, sn, mode):
+        """The deepest of the corners in span, -sigma_j h_j (-inf if none)."""
+        return max((-mode.cf_sigma[j] * sn.hj[j] for j in range(4) if mode.cf_region[j] == ON),
+                   default=-math.inf)
+
+    def face_deepest_is_u(self, sn, mode):
+        """Whether the face's deepest point is U (its depth at U, -sigma_C h(U), above every
+        corner in span; no corner in span: True) rather than a corner (ties: the corner;
+        no U: False).  Decides the sign of the face's bias (5.7)."""
+        if mode.u_edge is None:
+            return False
+        return self.u_depths(sn, mode, mode.u_edge)[1] > self.face_corner_max(sn, mode)
+
+    def biased(self, sn, mode, X, m=None):
+        """The biased measure b of (5.7), by which the axis is chosen: the face's
+        m_F - eta while a corner of it is in contact, m_F + eta when U is its only point
+        (face_corner_touches); an edge's m_e unbiased.  A fixed bias, not a memory."""
+        if m is None:
+            m = self.measure(sn, mode, X)
+        if X != AXIS_F:
+            return m
+        return m - self.eta if self.face_corner_touches(sn, mode) else m + self.eta
+
+    @staticmethod
+    def face_corner_touches(sn, mode):
+        """Reading of docs/model.md (5.7) as it now stands: the face's bias is -eta while one of
+        its corners in span touches (in contact, ACTIVE or CLIPPED, while the face is the axis;
+        behind the line, -sigma_j h_j > 0, while it is not: a corner that is no point yet),
+        +eta when U is its only point.  (A bias by which of the face's points is deepest made a
+        face lying flat across the tip switch axes at every crossing of its two ends' depths.)"""
+        if mode.axis == AXIS_F:
+            return any(mode.cf_region[j] == ON and mode.cf_state[j] != OFF for j in range(4))
+        return any(mode.cf_region[j] == ON and -mode.cf_sigma[j] * sn.hj[j] > 0.0 for j in range(4))
+
+    @staticmethod
+    def end_is_point(mode, end):
+        """Both ends of [u_a, u_b] are points of an edge axis (docs/model.md §5.2), the pivot O
+        itself included when it lies inside the load (a ridge where the fence dips below the
+        rail's line)."""
+        return True
 
     # ---- right-hand side ------------------------------------------------------
     def evaluate(self, t, y, mode, want_rhs=True):
@@ -889,14 +1000,12 @@ class CycleModel:
 
     # ---- events -----------------------------------------------------------------
     @staticmethod
-    def _state_events(ev, prefix, j, st, pushes):
-        """D crossing 0 for a point, and N* crossing 0 while its axis is in use."""
+    def _state_events(ev, prefix, j, st):
+        """D crossing 0, and N* crossing 0 while in contact."""
         if st == OFF:
             ev.append((prefix + "_D", j, 1))
         else:
-            ev.append((prefix + "_D", j, -1))
-            if pushes:
-                ev.append((prefix + "_N", j, -1 if st == ACTIVE else 1))
+            ev += [(prefix + "_D", j, -1), (prefix + "_N", j, -1 if st == ACTIVE else 1)]
 
     def event_list(self, mode):
         """(kind, index, direction) of every way the frozen mode can end."""
@@ -910,42 +1019,62 @@ class CycleModel:
                 ev.append(("cf_sl", j, -1))
             else:
                 ev += [("cf_s0", j, -1), ("cf_sl", j, 1)]
-                self._state_events(ev, "cf", j, mode.cf_state[j], on_F)
+                if on_F:
+                    self._state_events(ev, "cf", j, mode.cf_state[j])
+                elif mode.axis is not None:
+                    # the face's bias flips where a corner in span crosses the line (5.7)
+                    ev.append(("cfz", j, -1 if mode.cf_behind[j] else 1))
         for j in range(4):
             if mode.rl_region[j]:
                 ev.append(("rl_x", j, 1))
-                self._state_events(ev, "rl", j, mode.rl_state[j], True)
+                self._state_events(ev, "rl", j, mode.rl_state[j])
             else:
                 ev.append(("rl_x", j, -1))
-        # the sides of O and T on the load's edge lines: T inside, the intervals' ends
+        # the sides of O and T on the load's edge lines: T inside, what bounds [u_a, u_b]
         for k in range(8):
             ev.append(("ln", k, -1 if mode.lines[k // 4][k % 4] else 1))
+        lo, up, miss = self.line_sets(mode)
+        if not miss:
+            # another line takes over an end of [u_a, u_b] (the fence passes a corner)
+            for end, cand in ((0, lo), (1, up)):
+                if mode.bind[end] >= 0:
+                    ev += [("bd", 4 * end + k, 1) for k in cand if k != mode.bind[end]]
+            # both ends on lines: [u_a, u_b] closes or opens (the segment cuts a corner)
+            if mode.bind[0] >= 0 and mode.bind[1] >= 0:
+                ev.append(("tch", 0, -1 if mode.touch else 1))
         if mode.u_edge is not None:
-            self._state_events(ev, "u", 0, mode.u_state, on_F)
-            ev.append(("u_term", 0, 1 if mode.u_term == 0 else -1))
             if self.other_u_edge(mode) is not None:
                 ev.append(("u_edge", 0, -1))
-        for e in range(4):
-            if mode.ep_valid[e]:
-                for end in (0, 1):
-                    self._state_events(ev, "ep", 2 * e + end, mode.ep_state[e][end],
-                                       mode.axis == e)
+            if on_F:
+                self._state_events(ev, "u", 0, mode.u_state)
+                ev.append(("u_term", 0, 1 if mode.u_term == 0 else -1))
+        if mode.axis is not None and not on_F:
+            e = mode.axis
+            for end in mode.e_ends:
+                self._state_events(ev, "ep", 2 * e + end, mode.ep_state[end])
+            # one end (not the incident edge): the pivot end's D_a - D_b - eta crossing 0
+            if not mode.e_both and len(mode.e_ends) == 1:
+                other = 1 - mode.e_ends[0]
+                if mode.bind[other] != e and self.end_is_point(mode, other):
+                    ev.append(("ee", e, 1))
+        # the incident edge: another edge's n_e.(sigma_L n) falling below the incident
+        # edge's, and the load's centroid crossing the fence line (sigma_L flips)
+        ev += [("einc", k, 1) for k in range(4) if k != mode.e_inc]
+        ev.append(("sgL", 0, -1))
         if mode.axis is not None:
-            for X in mode.candidates():
-                if X != mode.axis:
+            # (5.7): the biased argmin changing, b_axis - b_X crossing 0 upwards
+            for X in AXIS_ORDER:
+                if X != mode.axis and (X != AXIS_F or self.face_has_points(mode)):
                     ev.append(("ax", X, 1))
+            # the face's bias flips where its deepest point changes between a corner and U
+            if mode.u_edge is not None and any(r == ON for r in mode.cf_region):
+                pass  # ("fb": the face's bias now flips at its corners' own contact events)
         ev.append(("scraped", 0, 1))
         ev.append(("escaped", 0, 1))
         if mode.engaged() or any(mode.rl_region[j] and mode.rl_state[j] != OFF
                                  for j in range(4)):
             ev.append(("fail", 0, 1))
         return ev
-
-    def other_u_edge(self, mode):
-        for edge in self.crossing_edges(mode):
-            if edge != mode.u_edge:
-                return edge
-        return None
 
     def event_values(self, t, y, mode, evlist):
         """Values of the event functions of `evlist`, each shifted by an infinitesimal
@@ -958,8 +1087,10 @@ class CycleModel:
         for gi, ev in zip(g, evlist):
             if ev[0] in ("cf_N", "rl_N", "u_N", "ep_N"):
                 b = self.N_hyst
-            elif ev[0] in ("cf_D", "rl_D", "u_D", "ep_D") and ev[2] < 0:
+            elif ev[0] in ("cf_D", "rl_D", "u_D", "ep_D", "tch") and ev[2] < 0:
                 b = self.D_hyst
+            elif ev[0] in ("ax", "fb", "ee"):
+                b = CHOICE_TOL
             else:
                 b = EVENT_BIAS
             out.append(gi - b if ev[2] > 0 else gi + b)
@@ -978,20 +1109,23 @@ class CycleModel:
 
         def m(X):
             if X not in meas:
-                meas[X] = self.measure(sn, mode, X, pts=pt)
+                meas[X] = self.measure(sn, mode, X)
             return meas[X]
         out = []
         Dmax = None
+        l = self.l
         for kind, j, direction in evlist:
             if kind == "cf_s0":
                 out.append(sn.sj[j])
             elif kind == "cf_sl":
-                out.append(sn.sj[j] - self.l)
+                out.append(sn.sj[j] - l)
             elif kind in ("cf_D", "u_D", "ep_D"):
                 out.append(pt(kind[:-2], j)[0])
             elif kind in ("cf_N", "u_N", "ep_N"):
                 r = pt(kind[:-2], j)
                 out.append(self._n_event(r[0], r[1], direction))
+            elif kind == "cfz":
+                out.append(-mode.cf_sigma[j] * sn.hj[j])
             elif kind == "rl_x":
                 out.append(sn.G[j][0])
             elif kind == "rl_D":
@@ -1000,6 +1134,26 @@ class CycleModel:
                 out.append(self._n_event(-sn.G[j][1], -sn.G[j][5], direction))
             elif kind == "ln":
                 out.append(sn.g[j // 4][j % 4])
+            elif kind == "bd":
+                # u_a = max of its lower bounds, u_b = min of its upper bounds
+                end, k = j // 4, j % 4
+                d = self.line_param(sn, k) - self.line_param(sn, mode.bind[end])
+                out.append((d if end == 0 else -d) * l)
+            elif kind == "tch":
+                out.append((self.end_u(sn, mode, 1) - self.end_u(sn, mode, 0)) * l)
+            elif kind == "ee":
+                # the end rule (5.7): the pivot end pushes iff D_a > D_b + eta; g = D_a - D_b
+                # - eta crossing up from the tip end, its negative from the pivot end
+                g = (self.depth_at(sn, j, self.end_u(sn, mode, 0))
+                     - self.depth_at(sn, j, self.end_u(sn, mode, 1)) - self.eta)
+                out.append(g if mode.e_ends[0] == 1 else -g)
+            elif kind == "einc":
+                # edge j's normal more anti-parallel to sigma_L n than the incident edge's
+                # (times l: a length)
+                f = self.incidence(sn, mode.sigma_L)
+                out.append((f[mode.e_inc] - f[j]) * l)
+            elif kind == "sgL":
+                out.append(mode.sigma_L * self.centroid_side(sn))
             elif kind == "u_term":
                 _, dU, dC2 = self.u_depths(sn, mode, mode.u_edge)
                 out.append(dU - dC2)
@@ -1008,15 +1162,21 @@ class CycleModel:
                 out.append(self.u_depths(sn, mode, mode.u_edge)[1]
                            - self.u_depths(sn, mode, self.other_u_edge(mode))[1])
             elif kind == "ax":
-                # (5.7): another axis penetrates less than the one in use by eta
-                out.append(m(mode.axis) - m(j) - self.eta)
+                # (5.7): axis j's biased measure falling below that of the axis in use
+                out.append(self.biased(sn, mode, mode.axis, m(mode.axis))
+                           - self.biased(sn, mode, j, m(j)))
+            elif kind == "fb":
+                # the face's deepest point changing between a corner and U (its bias flips)
+                d = (self.u_depths(sn, mode, mode.u_edge)[1]
+                     - self.face_corner_max(sn, mode))
+                out.append(-d if mode.face_u else d)
             elif kind == "scraped":
                 # Reading of docs/model.md: checked all the time, also when the load no
                 # longer touches the fence (it can slide off past the tip and still
                 # reach P_max by its own momentum).
                 out.append(sn.yc - self.p["P_max"])          # §9 centroid reaches P_max
             elif kind == "escaped":
-                out.append(min(g[0] for g in sn.G) - self.l)  # §9 all corners x > l
+                out.append(min(g[0] for g in sn.G) - l)      # §9 all corners x > l
             elif kind == "fail":
                 # Reading of docs/model.md: the penetration limit applies to every engaged
                 # contact (the manifold's points of the axis in use, the rail), clipped
@@ -1042,16 +1202,20 @@ class CycleModel:
         # Reading of docs/model.md: a corner that enters the fence region (from behind the
         # pivot, e.g. handed over from the rail) or the rail region already
         # penetrating starts with that D, the force jumping; it is clipped (N = 0) if
-        # the unclipped law is <= 0 there.  The same for a manifold point that appears
-        # at a finite depth (U, an end of an edge's interval).
+        # the unclipped law is <= 0 there.  The same for a manifold point that starts
+        # to push at a finite depth (a change of axis, of U's edge, of an edge's end).
         if D > 0.0:
             return ACTIVE if N > 0.0 else CLIPPED
         return OFF
 
+    def _classify_point(self, sn, mode, kind, j):
+        D, Dd = self.point(sn, mode, kind, j)[:2]
+        mode.set_state(kind, j, self._classify(D, sum(self.law.parts(D, Dd))))
+
     def contact_now(self, t, y, mode, kind, j):
         """(D, Dd, N_raw) of contact (kind, j) at (t, y) under `mode`: kind "cf" (corner j
-        on the fence's face), "u" (the under-tip point), "ep" (end j % 2 of edge j // 2's
-        interval) or "rl" (corner j on the rail)."""
+        on the fence's face), "u" (the under-tip point), "ep" (end j % 2 of [u_a, u_b] on
+        load edge j // 2) or "rl" (corner j on the rail)."""
         sn = _Snap(self, t, y, mode)
         if kind == "rl":
             D, Dd = -sn.G[j][1], -sn.G[j][5]
@@ -1062,8 +1226,11 @@ class CycleModel:
 
     def apply_event(self, t, y, mode, kind, j, direction):
         """Update the frozen mode for an event that fired at (t, y).  The manifold's
-        derived choices (U's edge, the intervals, the axis) follow in refresh_manifold."""
-        if kind == "cf_s0":
+        derived choices (U's edge, [u_a, u_b], the axis, an edge's end) follow in
+        refresh_manifold."""
+        if kind == "cfz":
+            mode.cf_behind[j] = direction > 0      # the face's bias re-read in refresh_manifold
+        elif kind == "cf_s0":
             if direction < 0:                      # on -> behind the pivot
                 mode.cf_region[j] = BEHIND
                 mode.cf_state[j] = OFF
@@ -1071,8 +1238,9 @@ class CycleModel:
             else:                                  # behind -> on
                 mode.cf_region[j] = ON
                 mode.cf_sigma[j] = 1
-                D, Dd, N = self.contact_now(t, y, mode, "cf", j)
-                mode.cf_state[j] = self._classify(D, N)
+                if mode.axis == AXIS_F:
+                    D, Dd, N = self.contact_now(t, y, mode, "cf", j)
+                    mode.cf_state[j] = self._classify(D, N)
         elif kind == "cf_sl":
             if direction > 0:                      # on -> beyond the tip
                 mode.cf_region[j] = BEYOND
@@ -1084,8 +1252,9 @@ class CycleModel:
                 h = -gx * math.sin(al) + gy * math.cos(al)
                 mode.cf_sigma[j] = 1 if h >= 0.0 else -1    # h = 0 counts as +1
                 mode.cf_region[j] = ON
-                D, Dd, N = self.contact_now(t, y, mode, "cf", j)
-                mode.cf_state[j] = self._classify(D, N)
+                if mode.axis == AXIS_F:
+                    D, Dd, N = self.contact_now(t, y, mode, "cf", j)
+                    mode.cf_state[j] = self._classify(D, N)
         elif kind == "rl_x":
             if direction > 0:                      # leaves the rail (x_G > 0)
                 mode.rl_region[j] = False
@@ -1100,11 +1269,35 @@ class CycleModel:
             mode.set_state(kind[:-2], j, ACTIVE if direction > 0 else CLIPPED)
         elif kind == "ln":
             mode.lines[j // 4][j % 4] = direction > 0
-        # Reading of docs/model.md: at a switch of the term of the min in (5.16), and of the
-        # edge U lies on, the crossing itself decides the new choice (re-evaluating at the
-        # root could pick the old one again and loop on a zero-length segment).
-        # (A region event of the same batch may have redefined U already: then
-        # refresh_manifold chooses afresh.)
+        # Reading of docs/model.md: at a switch of a choice by a crossing (the term of the
+        # min in (5.16), U's edge, the line an end of [u_a, u_b] lies on, the end an edge
+        # pushes with, whether [u_a, u_b] is empty), the crossing itself decides the new
+        # choice: re-evaluating at the root could pick the old one again and loop on a
+        # zero-length segment.  (A region event of the same batch may have redefined U
+        # already: then refresh_manifold chooses afresh.)
+        elif kind == "bd":
+            mode.bind[j // 4] = j % 4
+        elif kind == "tch":
+            mode.touch = direction > 0
+        elif kind == "ee":
+            # the end rule's crossing (D_a - D_b - eta through 0): the other end
+            if len(mode.e_ends) == 1 and not mode.e_both:
+                end = 1 - mode.e_ends[0]
+                mode.e_ends = (end,)
+                mode.ep_state = [OFF, OFF]
+                self._classify_point(_Snap(self, t, y, mode), mode, "ep", 2 * j + end)
+        elif kind == "einc":
+            # edge j takes over as the incident edge (refresh_manifold re-derives the
+            # points of an edge axis affected).  A sigma_L flip of the same batch has
+            # chosen afresh already: then the crossing no longer holds and is dropped.
+            f = self.incidence(_Snap(self, t, y, mode), mode.sigma_L)
+            if f[j] <= f[mode.e_inc] + INCIDENCE_TOL:
+                mode.e_inc = j
+        elif kind == "sgL":
+            # the load's centroid crosses the fence's line: the other side, and the
+            # incident edge chosen afresh on it
+            mode.sigma_L = -mode.sigma_L
+            mode.e_inc = self.incident_edge(_Snap(self, t, y, mode), mode.sigma_L)
         elif kind == "u_term":
             if mode.u_edge is not None:
                 mode.u_term = 1 - mode.u_term
@@ -1116,34 +1309,62 @@ class CycleModel:
             if other is not None:
                 mode.u_edge = other
                 self._fresh_u(_Snap(self, t, y, mode), mode)
-        # "ax": the axis is chosen again in refresh_manifold (forced)
+        elif kind == "fb":
+            # the face's deepest point changes between a corner and U: its bias flips
+            # (refresh_manifold keeps the flipped value and chooses the axis again)
+            mode.face_u = not mode.face_u
+        # "ax": the axis is chosen again in refresh_manifold (the one in use excluded)
 
     def _fresh_u(self, sn, mode):
         _, dU, dC2 = self.u_depths(sn, mode, mode.u_edge)
         mode.u_term = 0 if dU <= dC2 else 1
-        D, Dd = self.u_point(sn, mode)[:2]
-        el, dm = self.law.parts(D, Dd)
-        mode.u_state = self._classify(D, el + dm)
+        if mode.axis == AXIS_F:
+            self._classify_point(sn, mode, "u", 0)
+        else:
+            mode.u_state = OFF
 
-    def _pick_axis(self, ms, exclude=None):
-        """The axis of least penetration (5.7); within eta of the least, the first of
-        AXIS_ORDER (ties go to the fence's face)."""
-        cand = {X: v for X, v in ms.items() if X != exclude}
-        if not cand:
-            return exclude
-        lo = min(cand.values())
-        for X in AXIS_ORDER:
-            if X in cand and cand[X] <= lo + self.eta:
-                return X
-        return None
+    def _pick_axis(self, bs, exclude=None):
+        """The axis of (5.7): the argmin of the biased measures b (a fixed bias, not a
+        memory); exact ties in AXIS_ORDER (the face, then e = 0..3).  `exclude`: an axis
+        that an "ax" crossing has just left, so that round-off at the located instant does
+        not choose it again (the crossing decides); None where nothing else is left."""
+        cand = [(v, AXIS_ORDER.index(X), X) for X, v in bs.items()
+                if v < math.inf and X != exclude]
+        return min(cand)[2] if cand else exclude
 
-    def refresh_manifold(self, t, y, mode, forced=False):
+    def _pick_end(self, sn, mode, e):
+        """The end of [u_a, u_b] a load edge e (not the incident one under
+        INCIDENT_BOTH_ENDS) pushes with, of the ends not on e's own line: the pivot end iff
+        D_a > D_b + eta, else the tip end (a fixed bias, not a memory: a function of the
+        state); the only such end if one lies on e's line; None if both do."""
+        ends = [end for end in (1, 0) if mode.bind[end] != e and self.end_is_point(mode, end)]
+        if not ends:
+            return None
+        if len(ends) == 1:
+            return ends[0]
+        Da = self.depth_at(sn, e, self.end_u(sn, mode, 0))
+        Db = self.depth_at(sn, e, self.end_u(sn, mode, 1))
+        return 0 if Da > Db + self.eta else 1
+
+    def refresh_manifold(self, t, y, mode, exclude=None):
         """Re-derive the manifold's choices after events (§5.2): the edge U lies on, the
-        points of the intervals that appear or vanish, and the axis: kept while it has a
-        point in contact and penetrates at most eta more than the least (5.7), else (or
-        at an "ax" event: forced) chosen again.  The points of a newly chosen axis are
-        classified by their force (PUSH or CLIPPED)."""
+        lines that bound [u_a, u_b] and whether it is empty, the sign of the face's bias,
+        the axis and an edge's end (5.7).  A fixed bias, not a memory: the axis is the
+        argmin of the biased measures at this state, chosen afresh at every event, except
+        that at an "ax" crossing the axis it leaves (`exclude`) is not chosen again (the
+        crossing decides, so that round-off at the root does not undo it).  The face's
+        bias sign and an edge's end (the pivot end iff D_a > D_b + eta) are functions of
+        the state too; they are followed by their own located crossings ("fb", "ee",
+        applied in apply_event) and derived afresh here where what they are chosen from
+        changes (the face's points; the axis or the ends not on its line), so that an
+        unrelated event at one of their roots does not re-decide them by round-off.  The
+        points of a newly chosen axis or end are classified by their depth and force
+        (PUSH or CLIPPED)."""
         sn = _Snap(self, t, y, mode)
+        for j in range(4):  # (at a root of its own event the event's direction decides)
+            dj = -mode.cf_sigma[j] * sn.hj[j]
+            if abs(dj) > 1e-13:
+                mode.cf_behind[j] = dj > 0.0
         cross = self.crossing_edges(mode)
         if mode.u_edge not in cross:
             if cross:
@@ -1151,41 +1372,86 @@ class CycleModel:
                 self._fresh_u(sn, mode)
             else:
                 mode.u_edge, mode.u_term, mode.u_state = None, 0, OFF
-        for e in range(4):
-            valid = self.interval_valid(mode, e)
-            if valid != mode.ep_valid[e]:
-                mode.ep_valid[e] = valid
-                for end in (0, 1):
-                    st = OFF
-                    if valid:
-                        D, Dd = self.edge_point(sn, mode, e, end)[:2]
-                        el, dm = self.law.parts(D, Dd)
-                        st = self._classify(D, el + dm)
-                    mode.ep_state[e][end] = st
-        old = mode.axis
-        new = old
-        if not mode.in_contact():
-            new = None
+        lo, up, miss = self.line_sets(mode)
+        old_bind = list(mode.bind)
+        if miss:
+            mode.touch = False
+            mode.bind = [-1, -1]
         else:
-            ms = {X: self.measure(sn, mode, X) for X in mode.candidates()}
-            if not ms:
-                new = None
-            elif forced and old in ms:
-                new = self._pick_axis(ms, exclude=old)
-            elif old not in ms or ms[old] > min(ms.values()) + self.eta:
-                new = self._pick_axis(ms)
+            for end, cand, pick in ((0, lo, max), (1, up, min)):
+                if not cand:
+                    mode.bind[end] = -1
+                elif mode.bind[end] not in cand:
+                    mode.bind[end] = pick(cand, key=lambda k: self.line_param(sn, k))
+            if mode.bind[0] < 0 or mode.bind[1] < 0:
+                mode.touch = True          # O or T inside, no line outside both: [u_a, u_b] is there
+            elif mode.bind != old_bind or not mode.touch:
+                length = (self.end_u(sn, mode, 1) - self.end_u(sn, mode, 0)) * self.l
+                mode.touch = length >= -self.D_hyst if mode.touch else length > 0.0
+        # the face's bias: U or a corner its deepest point, from the state where the face's
+        # points changed or no "fb" event followed it (no axis in use)
+        old = mode.axis
+        key = (tuple(mode.cf_region), tuple(mode.cf_sigma), mode.u_edge)
+        if key != mode.face_key or old is None:
+            mode.face_u = self.face_deepest_is_u(sn, mode)
+            mode.face_key = key
+        new = None
+        if mode.touch:
+            bs = {X: self.biased(sn, mode, X) for X in AXIS_ORDER}
+            new = self._pick_axis(bs)
+            if new == exclude:
+                new = self._pick_axis(bs, exclude=exclude)
         if new != old:
             mode.axis = new
-            for kind, j in mode.axis_points(new):
-                if mode.state(kind, j) != OFF:
-                    D, Dd = self.point(sn, mode, kind, j)[:2]
-                    el, dm = self.law.parts(D, Dd)
-                    mode.set_state(kind, j, ACTIVE if el + dm > 0.0 else CLIPPED)
+            mode.cf_state = [OFF] * 4
+            mode.u_state = OFF
+            mode.e_ends, mode.e_both, mode.ep_state = (), False, [OFF, OFF]
+            if new == AXIS_F:
+                for kind, j in mode.face_points():
+                    if kind == "u":
+                        self._fresh_u(sn, mode)
+                    else:
+                        self._classify_point(sn, mode, kind, j)
+        if mode.axis is not None and mode.axis != AXIS_F:
+            e = mode.axis
+            if INCIDENT_BOTH_ENDS and e == mode.e_inc:
+                # the incident edge (a face of the load flush or nearly flush on the
+                # fence): both ends of [u_a, u_b] push, each but one on e's own line
+                ends = tuple(end for end in (0, 1)
+                             if mode.bind[end] != e and self.end_is_point(mode, end))
+                if new != old or not mode.e_both:
+                    # a new axis, or e has just become the incident edge: all anew
+                    mode.e_both, mode.e_ends, mode.ep_state = True, ends, [OFF, OFF]
+                    for end in ends:
+                        self._classify_point(sn, mode, "ep", 2 * e + end)
+                elif ends != mode.e_ends:
+                    # an end moved onto e's line (no point) or off it (a new point)
+                    for end in (0, 1):
+                        if end not in ends:
+                            mode.ep_state[end] = OFF
+                        elif end not in mode.e_ends:
+                            self._classify_point(sn, mode, "ep", 2 * e + end)
+                    mode.e_ends = ends
+            else:
+                # one point, the end of the rule (_pick_end): chosen afresh for a new axis,
+                # e no longer the incident edge, or an end gone onto e's line or off it;
+                # else the end in use (as "ee" crossings have set it)
+                cands = tuple(end for end in (0, 1)
+                              if mode.bind[end] != e and self.end_is_point(mode, end))
+                if new != old or mode.e_both or cands != mode.e_cands:
+                    end = self._pick_end(sn, mode, e)
+                    mode.e_both, mode.ep_state = False, [OFF, OFF]
+                    mode.e_ends = () if end is None else (end,)
+                    if end is not None:
+                        self._classify_point(sn, mode, "ep", 2 * e + end)
+                mode.e_cands = cands
 
     def mode_at(self, t, y, drive="rigid", drive_on=True):
         """A mode derived from the state alone (sides sigma_j := +1 in span and behind the
         pivot, sign(h) beyond the tip, (5.2)); every contact classified by D and N, the
-        axis chosen afresh.  y: the full state of names(mode) or just the load's six."""
+        manifold chosen afresh.  A point exactly on a line counts as on the load's side
+        of it, and a segment that only touches the load's boundary as touching it.
+        y: the full state of names(mode) or just the load's six."""
         m = _Mode()
         m.drive_on = drive_on
         m.fence_dyn = drive == "flexible"
@@ -1199,20 +1465,22 @@ class CycleModel:
             s_, h = sn.sj[j], sn.hj[j]
             m.cf_region[j] = BEHIND if s_ < 0.0 else (ON if s_ <= self.l else BEYOND)
             m.cf_sigma[j] = -1 if (s_ > self.l and h < 0.0) else 1
-            if m.cf_region[j] == ON:
-                D, Dd = self.corner_point(sn, m, j)[:2]
-                m.cf_state[j] = self._classify(D, sum(self.law.parts(D, Dd)))
             gx, gy = sn.G[j][:2]
             m.rl_region[j] = gx <= 0.0
             if m.rl_region[j]:
                 m.rl_state[j] = self._classify(-gy, sum(self.law.parts(-gy, -sn.G[j][5])))
-        m.lines = [[gk > 0.0 for gk in sn.g[p]] for p in (0, 1)]
+        m.lines = [[gk >= 0.0 for gk in sn.g[p]] for p in (0, 1)]
+        m.sigma_L = 1 if self.centroid_side(sn) >= 0.0 else -1
+        m.e_inc = self.incident_edge(sn, m.sigma_L)
+        m.bind = [None, None]
+        m.touch = True
         self.refresh_manifold(t, y, m)
         return m
 
     def initial_mode(self, y0, drive):
         # Reading of docs/model.md: a valid start has no contact (D <= 0 everywhere, T
-        # outside the load); the corners and the pivot O may lie exactly on a line.
+        # outside the load); the corners and the pivot O may lie exactly on a line (the
+        # fence resting on the load's boundary: touching, at depth 0).
         return self.mode_at(0.0, y0, drive)
 
 
@@ -1435,21 +1703,22 @@ def simulate_cycle(p, method="DOP853", rtol=1e-10, atol=None, max_step=None,
                 outcome = oc
             break
         touched = set()
-        forced = False
+        exclude = None
         for k in batch:
             kind, j, direc = evlist[k]
             key = _event_key(kind, j)
             if key in touched:
                 continue
             touched.add(key)
-            forced |= kind == "ax"
+            if kind == "ax":               # the axis it leaves is not chosen again at its root
+                exclude = seg_mode.axis
             model.apply_event(t, y, mode, kind, j, direc)
-        model.refresh_manifold(t, y, mode, forced=forced)
+        model.refresh_manifold(t, y, mode, exclude=exclude)
         # consistency check of the modes not touched by the events (diagnostic)
         fixes = _fix_modes(model, t, y, mode, touched)
         if fixes:
             n_mode_fixes += fixes
-            model.refresh_manifold(t, y, mode)
+            model.refresh_manifold(t, y, mode, exclude=exclude)
         nf_after = mode.n_fence_active()
         if nf_before == 0 and nf_after > 0:
             n_impacts += 1
@@ -1792,9 +2061,10 @@ def _fix_modes(model, t, y, mode, touched):
                     mode.cf_sigma[j] = 1 if h >= 0.0 else -1
                 else:
                     mode.cf_region[j] = ON
-                    D, Dd, N = model.contact_now(t, y, mode, "cf", j)
-                    mode.cf_state[j] = model._classify(D, N)
-            elif reg == ON:
+                    if mode.axis == AXIS_F:
+                        D, Dd, N = model.contact_now(t, y, mode, "cf", j)
+                        mode.cf_state[j] = model._classify(D, N)
+            elif reg == ON and mode.axis == AXIS_F:     # the corners push on the face alone
                 D, Dd, N = model.contact_now(t, y, mode, "cf", j)
                 st = mode.cf_state[j]
                 if (st == OFF and D > tol_D) or (st != OFF and D < -tol_D):
@@ -1820,10 +2090,19 @@ def _fix_modes(model, t, y, mode, touched):
                 and abs(gk) > tol_D:
             fixes += 1
             mode.lines[k // 4][k % 4] = gk > 0.0
-    pts = ([("u", 0)] if mode.u_edge is not None else []) + \
-        [("ep", 2 * e + end) for e in range(4) if mode.ep_valid[e] for end in (0, 1)]
-    for kind, j in pts:
-        if (kind, j) in touched:
+    # the load's side of the fence line and its incident edge (§5.2)
+    if ("sgL", 0) not in touched and mode.sigma_L * model.centroid_side(sn) < -tol_D:
+        fixes += 1
+        mode.sigma_L = -mode.sigma_L
+        mode.e_inc = model.incident_edge(sn, mode.sigma_L)
+    elif not any(("einc", k) in touched for k in range(4)):
+        f = model.incidence(sn, mode.sigma_L)
+        if f[mode.e_inc] > min(f) + INCIDENCE_TOL:
+            fixes += 1
+            mode.e_inc = model.incident_edge(sn, mode.sigma_L)
+    # the manifold's points of the axis in use: their state against the sign of D
+    for kind, j in mode.axis_points():
+        if (kind, j) in touched or kind == "cf":
             continue
         D, Dd, N = model.contact_now(t, y, mode, kind, j)
         st = mode.state(kind, j)
