@@ -22,7 +22,8 @@ from fencesweep.model.scenes.cycle import layout as CL
 from fencesweep.model.scenes.cycle import rhs as R
 from fencesweep.model.scenes.cycle import slots as S
 
-pytestmark = pytest.mark.plain_python  # also run without Numba's JIT: tests/test_plain_python.py
+#: the static tests also run without Numba's JIT (tests/test_plain_python.py); the cycles below do not
+plain_python = pytest.mark.plain_python
 
 classify, rhs = python_callable(S.classify), python_callable(R.rhs)
 L, A, FL, K1 = 0.7, 0.1, 1.2, 4e6
@@ -54,6 +55,7 @@ def fence_force(D, x, theta, L=L, A=A):
     return aux[CL.AX_NF], pushing
 
 
+@plain_python
 def test_the_issue_overlap_pushes_once():
     # a corner 2 mm deep, 0.3 mm short of the tip, theta 0.3: the two slots gave 357.8 + 357.6 N
     n, pushing = fence_force(2e-3, 0.3e-3, 0.3)
@@ -63,6 +65,7 @@ def test_the_issue_overlap_pushes_once():
     assert n < K1 * (2e-3) ** 1.5  # not the corner's and the tip's together
 
 
+@plain_python
 @pytest.mark.parametrize("theta", [0.1, 0.3, 0.6, 1.0])
 @pytest.mark.parametrize("D", [0.5e-3, 2e-3, 5e-3])
 @pytest.mark.parametrize("frac", [0.02, 0.2, 0.5, 0.9, 1.5])
@@ -76,6 +79,7 @@ def test_corner_near_the_tip_gives_one_force(theta, D, frac):
     assert n <= K1 * D**1.5 * (1 + 1e-12)  # never more than the corner alone
 
 
+@plain_python
 def test_the_force_turns_at_the_tip_without_a_jump():
     # along x through the switch from the corner (D) to the tip (D_T = D): the force is continuous
     D, theta = 2e-3, 0.3
@@ -85,6 +89,7 @@ def test_the_force_turns_at_the_tip_without_a_jump():
     assert max(forces) - min(forces) < 1e-5 * forces[0]
 
 
+@plain_python
 def test_a_face_flush_in_the_span_pushes_at_both_corners():
     # theta = 0: the bottom face 1 mm behind the line, well inside the span: S3, two corners
     n, pushing = fence_force(1e-3, 0.2, 0.0)
