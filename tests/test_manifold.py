@@ -126,7 +126,7 @@ def _hump(cut):
 
 
 @pytest.mark.parametrize("kw", [
-    dict(case="small_far", R_s=0.5, drive="flexible"),   # the cut: 2.09 with the double count
+    dict(case="small_far", R_s=0.5, drive="flexible"),   # 2.09 with the double count
     dict(case="small_far", R_s=0.5, drive="free"),       # 1.70
     dict(L=0.7, A=0.1, m1=15.0, R_s=0.3, drive="flexible"),  # a long load: 1.58
     dict(L=0.1, A=0.1, m1=2.0, R_s=0.5, drive="flexible"),   # a short load: 4.10
