@@ -91,8 +91,8 @@ def tables(before: str) -> None:
     import pandas as pd
 
     from fencesweep.study.sweep.accuracy import relative_difference
-    lines = [f"| table | rows | outcome changed | peak_force > 1e-3 | deflection_max > 1e-3 | t_exit > 1e-3 | "
-             f"largest move (column, relative) |", "|---|---:|---:|---:|---:|---:|---|"]
+    lines = ["| table | rows | outcome changed | peak_force > 1e-3 | deflection_max > 1e-3 | t_exit > 1e-3 | "
+             "largest move (column, relative) |", "|---|---:|---:|---:|---:|---:|---|"]
     for path in sorted((ROOT / "results").glob("*.parquet")):
         name = path.relative_to(ROOT).as_posix()
         old = subprocess.run(["git", "show", f"{before}:{name}"], cwd=ROOT, capture_output=True)

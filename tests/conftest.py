@@ -44,9 +44,10 @@ def tip_depth(row, vals):
 def _fence_in_load(o, t, L, A, grow):
     """The fence O-T inside the load (the load's frame), [u_a, u_b] and the edges cutting its ends."""
     lo, hi, e_lo, e_hi = 0.0, 1.0, -1, -1
+    def margin(p, e):
+        return (L / 2 - p[0], L / 2 + p[0], A / 2 - p[1], A / 2 + p[1])[e] + grow
     for e in range(4):
-        m = lambda p: (L / 2 - p[0], L / 2 + p[0], A / 2 - p[1], A / 2 + p[1])[e] + grow
-        c0, c1 = m(o), m(t) - m(o)
+        c0, c1 = margin(o, e), margin(t, e) - margin(o, e)
         if c1 > 0 and -c0 / c1 > lo:
             lo, e_lo = -c0 / c1, e
         elif c1 < 0 and -c0 / c1 < hi:

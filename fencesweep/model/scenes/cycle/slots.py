@@ -108,17 +108,29 @@ def face_point(ui, y, p, iw, held, ca, sa, dal, cphi, sphi, d_gap, d_force):
                      d_force)
 
 
+@kernel(inline=True)
+def least_edge(e_lo, e_hi, ax, ay, bx, by, hl, hw, m_face, d_gap):
+    """Of the load's edges, the first shallower than the face's (biased) measure m_face (docs/model.md
+    (5.7)), the ends of the fence's part inside the load at (ax, ay), (bx, by) (fence_in_load, cut
+    by edges e_lo, e_hi): (its edge or FACE, its measure, whether it pushes with the pivot end)."""
+    best, m_best, piv = FACE, m_face, False
+    for e in range(4):
+        m, pe = edge_measure(e, e_lo, e_hi, edge_margin(e, ax, ay, hl, hw), edge_margin(e, bx, by, hl, hw), d_gap)
+        if m < m_best:
+            best, m_best, piv = e, m, pe
+    return best, m_best, piv
+
+
 @kernel()
 def manifold(y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force):
     """The fence's contact manifold with the load (docs/model.md (5.7)). The bodies touch where the
     fence's segment enters the load (fence_in_load, the load grown by the hysteresis). The axis is
     the one of least penetration among the fence's face (the deepest of the load's corners in the
-    span and the edge's point under the tip) and the load's four edges (the deeper end of the
-    fence's part inside the load below each); the axis in use is kept until another is shallower
-    by numerics.CONTACT_HYSTERESIS l; ties go to the face when its deepest point is a corner, to
-    the edge when it is U (whose depth along n outgrows any edge's). Its points push: the face's corners and
-    U, or one end on the edge. Returns the codes of corners 0-3 on the fence, TIP, PIVOT, the tag
-    (an edge e, or FACE + U's edge) and the corners' sides (5.2)."""
+    span and the edge's point under the tip) and the load's four edges (least_edge), chosen from
+    the state alone: the face's measure is biased by CONTACT_HYSTERESIS l, in its favour while one
+    of its corners is in contact, against it when U is its only point. Its points push: the face's
+    corners and U, or one end on the edge. Returns the codes of corners 0-3 on the fence, TIP,
+    PIVOT, the tag (an edge e, or FACE + U's edge) and the corners' sides (5.2)."""
     hl = 0.5 * p[Lp.LL]
     hw = 0.5 * p[Lp.AA]
     cur_tag = iw[IW_EDGE]
@@ -138,21 +150,12 @@ def manifold(y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force):
     c2, D2, s2 = corner_code(2, y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force)
     c3, D3, s3 = corner_code(3, y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force)
     ui, d_own = under_tip_edge(y, hl, hw, p[Lp.FL], ca, sa, cphi, sphi, iw)
-    m_corner = max(max(D0, D1), max(D2, D3))
-    eta = NU.CONTACT_HYSTERESIS * p[Lp.FL]
-    # the face's measure biased by eta: it wins ties while one of its corners is in contact (a
-    # face flush on the fence, across the tip too, is the face's), loses them when U is its only
-    # point (a bias, not a memory: the choice is the state's alone)
-    with_corner = c0 != APART or c1 != APART or c2 != APART or c3 != APART
-    best, m_best, piv = FACE, max(m_corner, d_own) + (-eta if with_corner else eta), False
-    cu = APART if ui < 0 else face_point(ui, y, p, iw, cur == FACE and cur_tag == FACE + ui, ca, sa, dal, cphi,
-                                         sphi, d_gap, d_force)
-    for e in range(4):
-        m, pe = edge_measure(e, e_lo, e_hi, edge_margin(e, ax, ay, hl, hw), edge_margin(e, bx, by, hl, hw), d_gap)
-        if m < m_best:
-            best, m_best, piv = e, m, pe
-    axis = best
+    bias = NU.CONTACT_HYSTERESIS * p[Lp.FL] * (-1.0 if (c0 != APART or c1 != APART or c2 != APART or c3 != APART) else 1.0)
+    axis, _, piv = least_edge(e_lo, e_hi, ax, ay, bx, by, hl, hw, max(max(D0, D1), max(max(D2, D3), d_own)) + bias,
+                              d_gap)
     if axis == FACE:
+        cu = APART if ui < 0 else face_point(ui, y, p, iw, cur == FACE and cur_tag == FACE + ui, ca, sa, dal, cphi,
+                                             sphi, d_gap, d_force)
         return c0, c1, c2, c3, cu, APART, FACE + max(ui, 0), s0, s1, s2, s3
     code = edge_end_code(axis, lo if piv else hi, tx, ty, y, p, iw, PIVOT if piv else TIP, cur == axis, dal, cphi,
                          sphi, d_gap, d_force)
