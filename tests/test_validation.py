@@ -57,7 +57,7 @@ def test_csv_matches_the_scenes():
 #: ill-conditioned in the positions), is met because the approach is integrated APPROACH_TOL
 #: tighter than the cycle (kernel/numerics.py).
 KNOWN_MISSES: dict[str, str] = {
-    # One manifold (docs/model.md §5.2, issue "One overlap, one force"): the reference's second
+    # One manifold (docs/model.md §5.2): the reference's second
     # implementation of (5.7) does not agree with the engine on these yet; left open, measured:
     "long_near_free": "reference: a fence touch at 7e-37 m at the pivot, the engine none",
     "tiny_load_far": "reference chatters past its 20,000 events (failed); engine scraped",

@@ -211,7 +211,7 @@ def rail_code(k, y, p, iw, cphi, sphi, d_gap, d_force):
 
 @kernel(inline=True)
 def frame_at(t, y, p, iw):
-    """What slot_eval needs of the fence and the load at (t, y): cos and sin of alpha, alpha',
+    """What the manifold and the slots need of the fence and the load at (t, y): cos and sin of alpha, alpha',
     cos and sin of phi."""
     al, dal, aw, daw = fence_state(t, y, p, iw[IW_MODE])
     return math.cos(al), math.sin(al), dal, math.cos(y[2]), math.sin(y[2])
