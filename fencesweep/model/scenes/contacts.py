@@ -218,12 +218,15 @@ def under_tip(i, y, hl, hw, fl, ca, sa, dal, cphi, sphi, iw):
     beyond the tip) and its rate, and the side sigma of the in-span corner C. The edge is the one
     frozen for the step (under_tip_edge chose it); lambda is not clamped."""
     j = (i + 1) % 4
-    si, hi = corner_s_h(i, y, hl, hw, ca, sa, cphi, sphi)
-    sj, hj = corner_s_h(j, y, hl, hw, ca, sa, cphi, sphi)
-    c, cb = (i, j) if si <= sj else (j, i)
+    c, cb = i, j  # the in-span corner C and the one beyond, C' (the two corners' motion once each)
     rcx, rcy, gcx, gcy, vcx, vcy = corner_motion(c, y, hl, hw, cphi, sphi)
     rbx, rby, gbx, gby, vbx, vby = corner_motion(cb, y, hl, hw, cphi, sphi)
     sc, sb = gcx * ca + gcy * sa, gbx * ca + gby * sa
+    if sb < sc:
+        c, cb = j, i
+        rcx, rcy, gcx, gcy, vcx, vcy, rbx, rby, gbx, gby, vbx, vby = (rbx, rby, gbx, gby, vbx, vby,
+                                                                      rcx, rcy, gcx, gcy, vcx, vcy)
+        sc, sb = sb, sc
     lam = (fl - sc) / (sb - sc) if sb != sc else 0.0
     rx = rcx + lam * (rbx - rcx)
     ry = rcy + lam * (rby - rcy)
