@@ -1,4 +1,4 @@
-"""The command line: `fencesweep run | grid | design | sensitivity | plot | plot-design`. No
+"""The command line: `fencesweep run | grid | design | sensitivity | risk | plot | plot-design`. No
 physics and no orchestration here: each command parses its arguments, calls the Python API
 (fencesweep.model.simulate for one scene, fencesweep.study.api for the studies) and prints.
 
@@ -465,6 +465,9 @@ def build_parser() -> argparse.ArgumentParser:
     add_grid_parser(sub)
     add_design_parser(sub)
     add_sensitivity_parser(sub)
+    from fencesweep.risk_cli import add_risk_parser
+
+    add_risk_parser(sub)
     add_plot_design_parser(sub)
     add_plot_parser(sub)
     from fencesweep.gpuinfo import add_gpu_info_parser

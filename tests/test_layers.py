@@ -119,7 +119,7 @@ def test_functions_are_short_enough_to_read():
 
 
 #: study/'s wings (fencesweep/study/__init__.py): each imports only itself and the wings before it
-WINGS = ("store", "spec", "sweep", "design", "adaptive")
+WINGS = ("store", "spec", "sweep", "design", "adaptive", "risk")
 
 
 def _wing(mod: str) -> str | None:

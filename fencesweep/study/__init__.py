@@ -9,5 +9,7 @@
   design/    an envelope's design points judged over their loads (design/judge.py), their table
              (design/points.py), the design search and the sensitivity study
   adaptive/  `fencesweep grid --adaptive`: a design map's verdicts from a fraction of its cycles
-  api.py     the Python API of the studies (fencesweep.grid, estimate, design, sensitivity, points)
+  risk/      `fencesweep risk`: per element, the share of a parcel mix that breaks a constraint,
+             sampled round by round until it is known to lie below or above p_max
+  api.py     the Python API of the studies (fencesweep.grid, estimate, design, sensitivity, risk, points)
 """

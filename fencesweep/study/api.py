@@ -41,7 +41,7 @@ from fencesweep.study.sweep.estimate import Estimate
 from fencesweep.study.sweep.estimate import estimate as _estimate
 from fencesweep.study.sweep.progress import wanted as progress_wanted
 
-__all__ = ["grid", "run_grid", "points", "estimate", "design", "sensitivity", "load_spec", "SweepInterrupted",
+__all__ = ["grid", "run_grid", "points", "estimate", "design", "sensitivity", "risk", "load_spec", "SweepInterrupted",
            "SweepWriteError"]
 
 BACKENDS = ("loky", "dask", "cuda")
@@ -321,3 +321,67 @@ def sensitivity(spec: Any, *, out: str | Path | None = None, jobs: int | None = 
         raise UsageError(f"{sp.path or 'the spec'} has no sensitivity: section; see sweeps/sensitivity.yaml")
     return SA.run(sp, jobs=jobs, progress=progress_wanted(progress), out=out, log=log or _nothing,
                   backend=backend, scheduler=scheduler)
+
+
+def _load_risk_spec(spec: Any):
+    from fencesweep.study.spec import risk as RS
+
+    if isinstance(spec, RS.RiskSpec):
+        return spec
+    if isinstance(spec, (str, os.PathLike)):
+        return RS.load(spec)
+    if isinstance(spec, dict):
+        return RS.parse(spec, source=_yaml_text(spec))
+    raise TypeError(f"spec must be the path of a YAML risk spec, a dict (its parsed YAML) or a "
+                    f"fencesweep.study.spec.risk.RiskSpec, not {type(spec).__name__}")
+
+
+def _check_risk_output(sp, out: Path, overwrite: bool) -> None:
+    """Refuse (UsageError) to replace a table at `out` that is not this risk spec's (or not a table)."""
+    if overwrite or not out.exists():
+        return
+    try:
+        meta = store.read_metadata(out)
+    except (OSError, ValueError):
+        meta = {}
+    if meta.get("spec_hash") != sp.hash or "risk" not in meta:
+        raise UsageError(f"{out} exists and is not a table of this risk spec; not replacing it: choose another "
+                         f"--out, or add --overwrite to replace it")
+
+
+def risk(spec: Any, *, out: str | Path | None = None, jobs: int | None = None, resume: bool = True,
+         progress: bool | None = None, backend: str = "loky", scheduler: str | None = None, overwrite: bool = False,
+         wait: bool = False, log: Callable[[str], None] | None = None, simulate: Callable | None = None):
+    """`fencesweep risk`: per element and operating point of the risk spec, the probabilities that a
+    parcel of its population breaks each constraint and any (sweeps/README.md, Risk from a parcel
+    mix), sampled round by round until the P(any) interval is wholly below or above p_max or the
+    cap is reached; written to `out` (default: the spec's output) and returned as a DataFrame,
+    one row per element and operating point: df.attrs "units", "fencesweep" (provenance: the
+    spec, the population, the interval), "run" (cycles, chunks, seconds). The flags are grid's;
+    Ctrl-C keeps the rounds' finished chunks, and the same call again runs only the rest."""
+    from fencesweep.study.risk import run as RR
+
+    log = log or _nothing
+    progress = progress_wanted(progress)
+    _check_out(out)
+    _check_jobs(jobs)
+    _check_backend(backend, scheduler, gpu=False)
+    sp = _load_risk_spec(spec)
+    out = Path(out) if out is not None else Path(sp.output or f"{Path(sp.path).stem if sp.path else 'risk'}.parquet")
+    if sp.population.left_out:
+        log(f"note: {len(sp.population.left_out)} of {sp.population.n_file} parcels of {sp.population.source} are "
+            f"wider than the belt and are left out (population.too_large: skip), e.g. row "
+            f"{sp.population.left_out[0]}")
+    if jobs is None:
+        import joblib
+
+        jobs = joblib.cpu_count()
+    with _saying_what_is_saved(lambda: RR.saved_chunks(sp, out)):
+        output.check_writable(out)
+        _check_risk_output(sp, out, overwrite)
+        with lock.one_writer(out, wait, log):
+            record = RR.run_risk(sp, out, jobs, resume=resume, local=backend != "dask", scheduler=scheduler,
+                                 progress=progress, log=log, simulate=simulate)
+    df = store.read_table(out)
+    df.attrs["run"] = record | {"rounds": [list(map(int, r)) for r in record["rounds"]]}
+    return df
