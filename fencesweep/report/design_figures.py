@@ -224,7 +224,15 @@ def sensitivity(res: Path, out: Path) -> Path:
     return _save(fig, out, "sensitivity.png")
 
 
-FIGURES = {"envelope_map": envelope_map, "envelope_loads": worst_loads, "window": window, "sensitivity": sensitivity}
+def risk_map(res: Path, out: Path) -> Path:
+    """The risk map of `fencesweep risk sweeps/risk.yaml` (report/risk_figures.py)."""
+    from fencesweep.report.risk_figures import risk_map as draw
+
+    return draw(res, out)
+
+
+FIGURES = {"envelope_map": envelope_map, "envelope_loads": worst_loads, "window": window, "sensitivity": sensitivity,
+           "risk_map": risk_map}
 
 
 def plot(names, res: Path, out: Path | None = None, log=None) -> list:

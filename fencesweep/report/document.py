@@ -2,7 +2,7 @@
 the escapes, the design maps, the streams and the design for every package, written from the tables
 and trajectories that analysis.py reads. write_report assembles the file from the sections:
 answer_text.py (the opening, right under the title), paper_text.py (1, 4), fig5a_text.py,
-maps_text.py (2), stream_text.py (6), design_text.py (7); the title, the header, the list of
+maps_text.py (2), stream_text.py (6), design_text.py (7), risk_text.py (8); the title, the header, the list of
 figures (3) and the notes (5) are here. Orchestration and bookkeeping only (no physics, no matplotlib).
 """
 from __future__ import annotations
@@ -56,6 +56,7 @@ def write_report(res: Path = Path("results"), residual_max_deg: float = RESIDUAL
         _notes_section,         # 5. notes
         _stream_part,           # 6. consecutive cycles (stream_text.py)
         _design_part,           # 7. design for every package (design_text.py; empty until `fencesweep design`)
+        _risk_part,             # 8. risk from a parcel mix (risk_text.py; empty until `fencesweep risk`)
     )
     L: list[str] = []
     for section in sections:
@@ -157,3 +158,9 @@ def _design_part(I: ReportInputs) -> list[str]:
     from fencesweep.report.design_text import design_section  # empty until `fencesweep design` has run
 
     return design_section(I.res)
+
+
+def _risk_part(I: ReportInputs) -> list[str]:
+    from fencesweep.report.risk_text import risk_section  # empty until `fencesweep risk sweeps/risk.yaml` has run
+
+    return risk_section(I.res)
