@@ -23,7 +23,8 @@ N_SLOTS = 10
 RAIL0 = 4
 TIP = 8
 PIVOT = 9
-#: the manifold's tag (docs/model.md (5.7)): 0-3 a load edge e; FACE + i the fence's face, U on edge i
+#: the manifold's tag (docs/model.md (5.7)): 0-3 a load edge e; FACE + i + 4 b the fence's face, U on
+#: edge i, b the branch of its depth (under_tip: 0 its own, 1 the corner's beyond the tip)
 FACE = 4
 
 
@@ -212,11 +213,13 @@ def under_tip_edge(y, hl, hw, fl, ca, sa, cphi, sphi, iw):
 
 
 @kernel()
-def under_tip(i, y, hl, hw, fl, ca, sa, dal, cphi, sphi, iw):
+def under_tip(i, b, y, hl, hw, fl, ca, sa, dal, cphi, sphi, iw):
     """The under-tip point U on load edge i (docs/model.md (5.7)): its offset from the centroid
     (rx, ry), the load's velocity there (vx, vy), its depth D_U = min(own depth, that of the corner
-    beyond the tip) and its rate, and the side sigma of the in-span corner C. The edge is the one
-    frozen for the step (under_tip_edge chose it); lambda is not clamped."""
+    beyond the tip) and its rate, the side sigma of the in-span corner C, and the branch of the min
+    (0 its own, 1 the corner's). b = -1 takes the shallower; b = 0 or 1 the branch frozen for the
+    step, as the edge is (under_tip_edge chose it): a change of either is an event. lambda is not
+    clamped."""
     j = (i + 1) % 4
     c, cb = i, j  # the in-span corner C and the one beyond, C' (the two corners' motion once each)
     rcx, rcy, gcx, gcy, vcx, vcy = corner_motion(c, y, hl, hw, cphi, sphi)
@@ -234,11 +237,10 @@ def under_tip(i, y, hl, hw, fl, ca, sa, dal, cphi, sphi, iw):
     vy = y[4] + y[5] * rx
     sg = iw[c]
     d_own = -sg * (-(y[0] + rx) * sa + (y[1] + ry) * ca)
-    d_own_rate = -sg * ((-vx * sa + vy * ca) - dal * fl)
     d_beyond = -sg * (-gbx * sa + gby * ca)
-    if d_beyond < d_own:
-        return rx, ry, vx, vy, d_beyond, -sg * ((-vbx * sa + vby * ca) - dal * sb), sg
-    return rx, ry, vx, vy, d_own, d_own_rate, sg
+    if b == 1 or (b < 0 and d_beyond < d_own):
+        return rx, ry, vx, vy, d_beyond, -sg * ((-vbx * sa + vby * ca) - dal * sb), sg, 1
+    return rx, ry, vx, vy, d_own, -sg * ((-vx * sa + vy * ca) - dal * fl), sg, 0
 
 
 @kernel(inline=True)

@@ -94,11 +94,11 @@ def edge_point_sum(e, u, code, y, p, ca, sa, dal, cphi, sphi, aux):
 
 
 @kernel(inline=True)
-def under_tip_sum(i, y, p, iw, ca, sa, dal, cphi, sphi, aux):
-    """Add the force of the under-tip point U on load edge i (docs/model.md (5.7)): a corner's
-    force (5.4) at s = l."""
+def under_tip_sum(i, b, y, p, iw, ca, sa, dal, cphi, sphi, aux):
+    """Add the force of the under-tip point U on load edge i, its depth on branch b (docs/model.md
+    (5.7)): a corner's force (5.4) at s = l."""
     fl = p[Lp.FL]
-    rx, ry, vx, vy, D, Dd, sg = under_tip(i, y, 0.5 * p[Lp.LL], 0.5 * p[Lp.AA], fl, ca, sa, dal, cphi, sphi, iw)
+    rx, ry, vx, vy, D, Dd, sg, _ = under_tip(i, b, y, 0.5 * p[Lp.LL], 0.5 * p[Lp.AA], fl, ca, sa, dal, cphi, sphi, iw)
     a, b, c, d, n, pd, pf = corner_fence_force(rx, ry, vx, vy, fl, D, Dd, sg, ca, sa, p[Lp.KC], p[Lp.CD], p[Lp.LAW],
                                                p[Lp.MU2], p[Lp.EPSV], iw[IW_CODE + TIP] == PUSH)
     add_contact(aux, AX_NF, a, b, c, d, n, pd, pf, D)
@@ -115,7 +115,7 @@ def tip_sum(y, p, iw, ca, sa, dal, cphi, sphi, aux):
     tag = iw[IW_EDGE]
     if tag >= FACE:
         if ct != APART:
-            under_tip_sum(tag - FACE, y, p, iw, ca, sa, dal, cphi, sphi, aux)
+            under_tip_sum((tag - FACE) % 4, (tag - FACE) // 4, y, p, iw, ca, sa, dal, cphi, sphi, aux)
         return
     tx, ty = tip_position(p[Lp.FL], ca, sa)
     tlx, tly, dx, dyy = tip_local(tx, ty, y[0], y[1], cphi, sphi)

@@ -99,13 +99,15 @@ def edge_measure(e, e_lo, e_hi, ma, mb, d_gap):
 
 @kernel(inline=True)
 def face_point(ui, y, p, iw, held, ca, sa, dal, cphi, sphi, d_gap, d_force):
-    """Code of the under-tip point U on load edge ui (docs/model.md (5.7)); its code in iw counts
-    only while the face with U on that edge is in use (held)."""
-    hl = 0.5 * p[Lp.LL]
-    hw = 0.5 * p[Lp.AA]
-    _, _, _, _, Du, Ddu, _ = under_tip(ui, y, hl, hw, p[Lp.FL], ca, sa, dal, cphi, sphi, iw)
+    """The face's TIP slot (docs/model.md (5.7)): the code of the under-tip point U on load edge ui
+    and the manifold's tag, FACE + ui + 4 x the branch of U's depth (under_tip; no U: APART, FACE).
+    U's code in iw counts only while the face with U on that edge is in use (held)."""
+    if ui < 0:
+        return APART, FACE
+    _, _, _, _, Du, Ddu, _, b = under_tip(ui, -1, y, 0.5 * p[Lp.LL], 0.5 * p[Lp.AA], p[Lp.FL], ca, sa, dal, cphi,
+                                          sphi, iw)
     return next_code(iw[IW_CODE + TIP] if held else APART, Du, Ddu, True, p[Lp.KC], p[Lp.CD], p[Lp.LAW], d_gap,
-                     d_force)
+                     d_force), FACE + ui + 4 * b
 
 
 @kernel(inline=True)
@@ -130,7 +132,7 @@ def manifold(y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force):
     the state alone: the face's measure is biased by CONTACT_HYSTERESIS l, in its favour while one
     of its corners is in contact, against it when U is its only point. Its points push: the face's
     corners and U, or one end on the edge. Returns the codes of corners 0-3 on the fence, TIP,
-    PIVOT, the tag (an edge e, or FACE + U's edge) and the corners' sides (5.2)."""
+    PIVOT, the tag (an edge e, or FACE + U's edge + 4 x its depth's branch) and the corners' sides (5.2)."""
     hl = 0.5 * p[Lp.LL]
     hw = 0.5 * p[Lp.AA]
     cur_tag = iw[IW_EDGE]
@@ -154,9 +156,9 @@ def manifold(y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force):
     axis, _, piv = least_edge(e_lo, e_hi, ax, ay, bx, by, hl, hw, max(max(D0, D1), max(max(D2, D3), d_own)) + bias,
                               d_gap)
     if axis == FACE:
-        cu = APART if ui < 0 else face_point(ui, y, p, iw, cur == FACE and cur_tag == FACE + ui, ca, sa, dal, cphi,
-                                             sphi, d_gap, d_force)
-        return c0, c1, c2, c3, cu, APART, FACE + max(ui, 0), s0, s1, s2, s3
+        cu, tag = face_point(ui, y, p, iw, cur == FACE and (cur_tag - FACE) % 4 == ui, ca, sa, dal, cphi, sphi,
+                             d_gap, d_force)
+        return c0, c1, c2, c3, cu, APART, tag, s0, s1, s2, s3
     code = edge_end_code(axis, lo if piv else hi, tx, ty, y, p, iw, PIVOT if piv else TIP, cur == axis, dal, cphi,
                          sphi, d_gap, d_force)
     if piv:
