@@ -47,13 +47,17 @@ else
   echo "skipping fencesweep sensitivity: SALib is not installed (pip install -e \".[sensitivity]\")"
 fi
 
+# 2c. risk from a parcel mix (an assumed mix, sweeps/risk.yaml; about two minutes on one core)
+rm -f results/risk.parquet
+fencesweep risk sweeps/risk.yaml --quiet --no-resume "${JOBS[@]}"
+
 # 3. the single cycles the figures need (after b2k2 and fig5a_worst_v: the recommended element and the
 #    worst placements are read off them)
 fencesweep plot trajectories --results results
 
 # 4. figures and the report
 fencesweep plot all --results results
-fencesweep plot-design --results results   # envelope map, loads, window (and sensitivity when its table exists)
+fencesweep plot-design --results results   # envelope map, loads, window, risk map (and sensitivity when its table exists)
 fencesweep plot report --results results
 
 # 5. the benchmark pages that time the current kernel: work-precision against the reference (with
