@@ -41,7 +41,7 @@ def add_risk_parser(sub) -> argparse.ArgumentParser:
 
 
 def _line(row) -> str:
-    name = row["label"] if isinstance(row["label"], str) else "least risk"
+    name = row["label"] if isinstance(row["label"], str) else "least risk (the lowest upper end)"
     return (f"{name} (B2 = {row['B2']:g}, K2 = {row['K2']:g}; t_c = {row['t_c']:g} s, v = {row['v']:g} m/s): "
             f"{row['in_10000_any']:.0f} parcels in 10,000 break a constraint (95 % interval "
             f"{row['p_any_lo'] * 1e4:.0f}-{row['p_any_hi'] * 1e4:.0f}): {row['in_10000_overload']:.0f} hit too hard, "
@@ -55,7 +55,9 @@ def summary_lines(df) -> list:
              f"{run.get('seconds', 0):.1f} s ({run.get('below')} below p_max, {run.get('above')} above, "
              f"{run.get('undecided')} undecided at the cap)"]
     if "B2" in df and "K2" in df:
-        lines.append(_line(df.loc[df["p_any"].idxmin()].to_dict() | {"label": None}))
+        from fencesweep.report.risk_figures import least_risk
+
+        lines.append(_line(least_risk(df).to_dict() | {"label": None}))
         lines += [_line(r) for r in df.to_dict("records") if isinstance(r["label"], str)]
     return lines
 

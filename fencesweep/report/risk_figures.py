@@ -17,8 +17,16 @@ MARKS = ("o", "s", "D", "^", "v", "P", "X")
 
 
 def least_risk(df):
-    """The row of least risk: the smallest P(any), then the smallest upper end of its interval."""
-    return df.sort_values(["p_any", "p_any_hi", "B2", "K2"], kind="stable").iloc[0]
+    """The row of least risk: the smallest upper end of the P(any) interval (the element whose risk
+    its sample bounds lowest), then the smallest estimate. Not the smallest estimate alone: the
+    sequential stop leaves a unit at 0 failures after a few hundred parcels with an estimate of 0
+    and a wide interval, and a unit that ran on with a few failures may well be the safer one."""
+    return df.sort_values(["p_any_hi", "p_any", "B2", "K2"], kind="stable").iloc[0]
+
+
+def ties(df, best) -> int:
+    """Units other than `best` whose P(any) interval overlaps best's: the sample does not rank them."""
+    return int(((df["p_any_lo"] <= best["p_any_hi"]) & (df["p_any_hi"] >= best["p_any_lo"])).sum()) - 1
 
 
 def _edges(v: np.ndarray) -> np.ndarray:
@@ -48,10 +56,11 @@ def _panel(fig, ax, g, p_max: float) -> None:
             v = per[i, j]
             ax.text(b, k, f"{v:.0f}" + ("?" if dec[i, j] == "undecided" else ""), ha="center", va="center",
                     fontsize=7, color="white" if v > 300 else "k", weight="bold" if dec[i, j] == "above" else "normal")
-    best, ties = least_risk(g), int((g["p_any"] == g["p_any"].min()).sum())
-    handles = [Line2D([], [], label=f"least risk: {best['B2']:g}/{best['K2']:g}, {best['in_10000_any']:.0f} in "
-                                    f"10,000 (95 %: <= {best['p_any_hi'] * 1e4:.0f})"
-                                    + (f"; {ties} elements tie at this estimate" if ties > 1 else ""), **LEAST)]
+    best = least_risk(g)
+    handles = [Line2D([], [], label=f"least risk (the lowest upper end): {best['B2']:g}/{best['K2']:g}, "
+                                    f"{best['in_10000_any']:.0f} in 10,000 ({best['p_any_lo'] * 1e4:.0f}-"
+                                    f"{best['p_any_hi'] * 1e4:.0f}); {ties(g, best)} others' intervals overlap it",
+                      **LEAST)]
     ax.plot(best["B2"], best["K2"], zorder=5, **LEAST)
     for row, mark in zip(g[g["label"].notna()].to_dict("records"), MARKS):
         ax.plot(row["B2"], row["K2"], zorder=6, **COMPARED, marker=mark)

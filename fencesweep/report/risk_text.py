@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from fencesweep.report.risk_figures import least_risk
+from fencesweep.report.risk_figures import least_risk, ties
 
 
 def _range(p_lo: float, p_hi: float) -> str:
@@ -72,21 +72,22 @@ def risk_section(res: Path) -> list:
          "| element | B2 / K2 | any, in 10,000 (95 %) | hit too hard | not sorted | deflection | residual | "
          "parcels sampled | against p_max |", "|---|---|---|---|---|---|---|---|---|"]
     best = least_risk(df)
-    ties = int((df["p_any"] == best["p_any"]).sum())
+    overlap = ties(df, best)
     marked = df[df["label"].notna()]
     L += [_row(r["label"], r) for r in marked.to_dict("records")]
-    L += [_row("least risk" + (f" (one of {ties} tied)" if ties > 1 else ""), best), ""]
+    L += [_row("least risk", best), ""]
     L += ["Under this mix, of 10,000 parcels: " + "; ".join(
         f"{r['label']} hits {r['in_10000_overload']:.0f} too hard and does not sort {r['in_10000_not_scraped']:.0f} "
         f"({r['in_10000_any']:.0f} break some constraint, 95 %: {_range(r['p_any_lo'], r['p_any_hi'])})"
         for r in marked.to_dict("records")) + ".",
         "",
         f"**Least risk: B2 = {best['B2']:g}, K2 = {best['K2']:g}**, {best['in_10000_any']:.0f} in 10,000 "
-        f"(at most {best['p_any_hi'] * 1e4:.0f} with 95 % confidence, {int(best['n'])} parcels sampled)"
-        + (f"; {ties} elements share that estimate, and the sample does not tell them apart (the one named has "
-           f"the smallest upper end, then the smallest B2; the elements stopped after different numbers of parcels, "
-           f"so estimates this close are not a ranking)" if ties > 1 else "") + ". "
-        f"{(df['decision'] == 'below').sum()} of {len(df)} elements are below p_max, "
+        f"(95 %: {_range(best['p_any_lo'], best['p_any_hi'])}, {int(best['n'])} parcels sampled): the element "
+        f"whose risk its sample bounds lowest (the smallest upper end of the interval; an element stopped at 0 "
+        f"failures after a few hundred parcels has an estimate of 0 but a wider interval). "
+        + (f"The intervals of {overlap} other elements overlap its own: the sampling decides each element against "
+           f"p_max, it does not rank them; to rank the best, sample them on with a lower p_max. " if overlap else "")
+        + f"{(df['decision'] == 'below').sum()} of {len(df)} elements are below p_max, "
         f"{(df['decision'] == 'above').sum()} above, {(df['decision'] == 'undecided').sum()} undecided at the cap.",
         ""]
     return L
