@@ -365,7 +365,7 @@ def add_plot_design_parser(sub) -> argparse.ArgumentParser:
     from fencesweep.report.design_figures import FIGURES
 
     what = list(FIGURES) + ["all"]
-    g = sub.add_parser("plot-design", help="draw the design figures (envelope map, loads, window, sensitivity)",
+    g = sub.add_parser("plot-design", help="draw the design figures (envelope map, loads, window, sensitivity, risk map)",
                        description="Draw the figures of the design for every package into RESULTS/figures/ from "
                                    "the tables of fencesweep grid sweeps/envelope.yaml and fencesweep design "
                                    "(needs matplotlib). Figures: " + ", ".join(FIGURES))
