@@ -308,3 +308,24 @@ def test_the_command_prints_the_least_risk_and_the_compared_elements(tmp_path, c
     assert out[0].startswith(f"wrote {tmp_path / 'r.parquet'}: 3 elements x operating points, 36 cycles")
     assert out[1].startswith("least risk (the lowest upper end) (B2 = ") and "parcels in 10,000" in out[1]
     assert out[2].startswith("paper 72/570 (B2 = 72, K2 = 570; t_c = 1.36 s, v = 2 m/s): ")
+
+
+def test_another_specs_table_or_unfinished_run_is_not_replaced(tmp_path):
+    d = spec(risk={"p_max": 0.01, "first": 40, "cap": 640})
+    calls = {"n": 0}
+
+    def dies(vals, trajectory=False):
+        calls["n"] += 1
+        if calls["n"] > 100:
+            raise KeyboardInterrupt
+        return _fake(vals)
+
+    out = tmp_path / "r.parquet"
+    with pytest.raises(fencesweep.SweepInterrupted):
+        fencesweep.risk(d, out=out, jobs=1, progress=False, simulate=dies)
+    other = spec(risk={"p_max": 0.02, "first": 40, "cap": 640})
+    with pytest.raises(fencesweep.UsageError, match="unfinished run of another risk spec"):
+        fencesweep.risk(other, out=out, jobs=1, progress=False, simulate=_fake)
+    fencesweep.risk(other, out=out, jobs=1, progress=False, simulate=_fake, overwrite=True)
+    with pytest.raises(fencesweep.UsageError, match="is not a table of this risk spec"):
+        fencesweep.risk(d, out=out, jobs=1, progress=False, simulate=_fake)

@@ -10,6 +10,8 @@ arguments, calls these and prints what they return.
 * estimate(spec, ...) is `fencesweep grid --dry-run`: an estimate.Estimate, nothing written.
 * design(spec, ...) and sensitivity(spec, ...) run those studies (design.run_design,
   sensitivity.run) and return the recommendation (a dict) and the indices (a DataFrame).
+* risk(spec, ...) runs a risk spec (spec/risk.py, risk/run.py) and returns its table, one row per
+  element and operating point, with attrs "units", "fencesweep" and "run".
 
 `spec` is a YAML file (its path), the parsed YAML of a spec (a dict) or a spec.Spec. Bad input
 raises before anything is written: ParameterError (SpecError, a subclass, for a spec: it names
@@ -337,8 +339,21 @@ def _load_risk_spec(spec: Any):
 
 
 def _check_risk_output(sp, out: Path, overwrite: bool) -> None:
-    """Refuse (UsageError) to replace a table at `out` that is not this risk spec's (or not a table)."""
-    if overwrite or not out.exists():
+    """Refuse (UsageError) to replace a table at `out` that is not this risk spec's (or not a table),
+    or to discard another risk spec's unfinished run saved beside it."""
+    import json
+
+    if overwrite:
+        return
+    for state in sorted(Path(str(out) + ".partial").glob("*/risk.json")):
+        try:
+            other = json.loads(state.read_text()).get("spec_hash")
+        except (OSError, ValueError):
+            continue
+        if other != sp.hash and any(state.parent.glob("chunk-*.parquet")):
+            raise UsageError(f"{state.parent.parent} holds the unfinished run of another risk spec; not discarding it: "
+                             f"finish that run first, choose another --out, or add --overwrite to discard it")
+    if not out.exists():
         return
     try:
         meta = store.read_metadata(out)
