@@ -115,7 +115,8 @@ def main() -> int:
         df = fencesweep.risk(sp, out=Path(tmp) / "risk.parquet", jobs=args.jobs, progress=False)
         t_seq = time.perf_counter() - t
         print(f"sequential: {int(df['n'].sum())} cycles in {t_seq:.1f} s", flush=True)
-        if args.events and Path(args.events).exists():
+        args.reused = bool(args.events and Path(args.events).exists())
+        if args.reused:
             saved = np.load(args.events)
             events, t_fixed = saved["events"], float(saved["seconds"])
         else:
@@ -140,8 +141,8 @@ def report(sp, df, t_seq, events, t_fixed, seq, same, args) -> list:
          f"`python benchmarks/risk.py --jobs {args.jobs}` on `{args.spec}` ({units} elements x operating points, "
          f"p_max = {sp.p_max:g}, looks at {', '.join(map(str, sp.schedule()))} parcels), fencesweep "
          f"{fencesweep.__version__}, python {platform.python_version()}, {platform.system()}, "
-         f"{'' if args.events is None else 'the fixed runs reused from --events, '}one machine shared with other "
-         f"work (the wall times are rough).", "",
+         f"{'the fixed runs (and their wall time) from an earlier run, --events, ' if args.reused else ''}"
+         f"on 2 cores shared with other work, one job (the wall times are rough).", "",
          "| | cycles | per element (mean) | wall time |", "|---|---|---|---|",
          f"| sequential stop (`fencesweep risk`) | {cycles_seq} | {cycles_seq / units:.0f} | {t_seq:.1f} s |"]
     if fx["n"]:

@@ -93,8 +93,8 @@ def test_design_figures_are_drawn(res, tmp_path):
     with pytest.raises(PD.MissingTable, match="fencesweep grid sweeps/window.yaml"):
         PD.plot(["window"], res, tmp_path)
     notes = []
-    assert len(PD.plot(["all"], res, tmp_path, log=notes.append)) == 2  # window, sensitivity: no tables
-    assert len(notes) == 2 and "sensitivity" in notes[1]
+    assert len(PD.plot(["all"], res, tmp_path, log=notes.append)) == 2  # window, sensitivity, risk_map: no tables
+    assert len(notes) == 3 and "sensitivity" in notes[1] and "fencesweep risk sweeps/risk.yaml" in notes[2]
 
 
 def test_section_2_points_to_the_envelope_recommendation_only_when_there_is_one(tmp_path):

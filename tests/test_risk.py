@@ -329,3 +329,23 @@ def test_another_specs_table_or_unfinished_run_is_not_replaced(tmp_path):
     fencesweep.risk(other, out=out, jobs=1, progress=False, simulate=_fake, overwrite=True)
     with pytest.raises(fencesweep.UsageError, match="is not a table of this risk spec"):
         fencesweep.risk(d, out=out, jobs=1, progress=False, simulate=_fake)
+
+
+def test_the_report_section_and_the_map_are_read_off_the_table(tmp_path):
+    from fencesweep.report.risk_text import risk_section
+
+    res = tmp_path / "res"
+    assert risk_section(res) == []  # nothing before `fencesweep risk` has run
+    d = spec(elements={"B2": [15, 231], "K2": [925, 2075]}, compare={"envelope 231/925": {"B2": 231, "K2": 925}},
+             risk={"p_max": 0.01, "first": 40, "cap": 320})
+    df = fencesweep.risk(d, out=res / "risk.parquet", jobs=1, progress=False, simulate=_fake)
+    text = "\n".join(risk_section(res))
+    row = df[df.label == "envelope 231/925"].iloc[0]
+    assert f"| envelope 231/925 | 231 / 925 | **{row['in_10000_any']:.0f}** " in text
+    assert "R_s uniform from -0.4 to 0.6 m" in text and "seed 7" in text and "**assumed**" in text
+    assert "Least risk: B2 = " in text and "parcels in 10,000" in text
+    pytest.importorskip("matplotlib")
+    from fencesweep.report.design_figures import plot
+
+    [png] = plot(["risk_map"], res, tmp_path / "figures")
+    assert png.name == "risk_map.png" and png.stat().st_size > 10_000
