@@ -260,8 +260,11 @@ def test_too_large_parcels_are_left_out_and_counted_when_asked(tmp_path):
     assert sp.population.left_out == [6] and len(sp.population.parcels["L"]) == 5
     drawn = PO.draw(sp.population, 200)
     assert set(np.round(drawn["A"], 6)) <= {0.12, 0.15, 0.1, 0.18, 0.11}
-    df = fencesweep.risk(d, out=tmp_path / "r.parquet", jobs=1, progress=False, simulate=_fake)
+    notes = []
+    df = fencesweep.risk(d, out=tmp_path / "r.parquet", jobs=1, progress=False, simulate=_fake, log=notes.append)
     assert df.attrs["fencesweep"]["population"]["n_file_rows_left_out"] == 1
+    assert notes == [f"note: 1 of 6 parcels of {d['population']['parcels']} are wider than the belt and are left out "
+                     f"(population.too_large: skip), e.g. row 6"]
 
 
 def test_distribution_bounds_wider_than_the_belt_are_refused_or_left_out():
@@ -279,6 +282,9 @@ def test_distribution_bounds_wider_than_the_belt_are_refused_or_left_out():
     ({"risk": {"p_max": 2}}, "risk.p_max = 2"),
     ({"risk": {"cap": 10, "first": 64}}, "risk.cap = 10: must be >= risk.first = 64"),
     ({"operating": {"t_c": 1.36, "w": 2}}, "operating[0]"),
+    ({"population": dict(BASE["population"], sigma=1)}, "population.sigma: unknown key"),
+    ({"population": dict(BASE["population"], m1={"dist": "lognorm", "s": "wide", "min": 5, "max": 15})},
+     "population.m1.s = 'wide': expected a finite number"),
 ])
 def test_a_bad_spec_is_named(change, message):
     with pytest.raises(fencesweep.SpecError) as exc:
