@@ -347,7 +347,9 @@ def test_the_report_section_and_the_map_are_read_off_the_table(tmp_path):
     df = fencesweep.risk(d, out=res / "risk.parquet", jobs=1, progress=False, simulate=_fake)
     text = "\n".join(risk_section(res))
     row = df[df.label == "envelope 231/925"].iloc[0]
-    assert f"| envelope 231/925 | 231 / 925 | **{row['in_10000_any']:.0f}** " in text
+    assert f"| envelope 231/925 | 231 / 925 | 1.36 / 2 | **{row['in_10000_any']:.0f}** " in text
+    assert (f"envelope 231/925 hits {row['in_10000_overload']:.0f} too hard and does not sort "
+            f"{row['in_10000_not_scraped']:.0f} (") in text
     assert "R_s uniform from -0.4 to 0.6 m" in text and "seed 7" in text and "**assumed**" in text
     assert "Least risk: B2 = " in text and "parcels in 10,000" in text
     pytest.importorskip("matplotlib")

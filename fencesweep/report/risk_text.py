@@ -40,7 +40,7 @@ def _population_text(pop: dict) -> str:
 
 
 def _row(name: str, r) -> str:
-    return (f"| {name} | {r['B2']:g} / {r['K2']:g} | **{r['in_10000_any']:.0f}** ({_range(r['p_any_lo'], r['p_any_hi'])}) "
+    return (f"| {name} | {r['B2']:g} / {r['K2']:g} | {r['t_c']:g} / {r['v']:g} | **{r['in_10000_any']:.0f}** ({_range(r['p_any_lo'], r['p_any_hi'])}) "
             f"| {r['in_10000_overload']:.0f} ({_range(r['p_overload_lo'], r['p_overload_hi'])}) "
             f"| {r['in_10000_not_scraped']:.0f} ({_range(r['p_not_scraped_lo'], r['p_not_scraped_hi'])}) "
             f"| {r['in_10000_deflection']:.0f} | {r['in_10000_residual']:.0f} | {int(r['n'])} | {r['decision']} |")
@@ -56,8 +56,9 @@ def risk_section(res: Path) -> list:
     prov = df.attrs["fencesweep"]
     rk, counts = prov["risk"], prov["counts"]
     L = ["## 8. Risk from a parcel mix: parcels in 10,000", "",
-         f"`fencesweep risk {prov.get('spec_path') or 'SPEC'}` ({df['drive'].iloc[0]} drive, t_c = "
-         f"{df['t_c'].iloc[0]:g} s, v = {df['v'].iloc[0]:g} m/s). The parcel mix is **assumed**, not measured: "
+         f"`fencesweep risk {prov.get('spec_path') or 'SPEC'}` ({df['drive'].iloc[0]} drive, "
+         + "; ".join(f"t_c = {t:g} s, v = {v:g} m/s" for t, v in df[["t_c", "v"]].drop_duplicates().to_numpy())
+         + "). The parcel mix is **assumed**, not measured: "
          f"{_population_text(prov['population'])}. A parcel breaks a constraint when it is hit harder than the "
          f"permitted drop test (overload > {rk['limits']['overload']:g}), is not sorted (outcome not scraped), "
          f"deflects the fence beyond {rk['limits']['deflection_max']} or leaves it ringing (residual_amplitude > "
@@ -69,15 +70,17 @@ def risk_section(res: Path) -> list:
          f"plain pseudo-random (seeded), the same parcels for every element. {counts['cycles']} cycles in all, "
          f"against {counts['cycles_at_cap']} for every element at the cap "
          f"([`risk_map.png`](figures/risk_map.png), [`risk.md`](risk.md): the cycles the sequential stop saves).", "",
-         "| element | B2 / K2 | any, in 10,000 (95 %) | hit too hard | not sorted | deflection | residual | "
-         "parcels sampled | against p_max |", "|---|---|---|---|---|---|---|---|---|"]
+         "| element | B2 / K2 | t_c / v | any, in 10,000 (95 %) | hit too hard | not sorted | deflection | residual | "
+         "parcels sampled | against p_max |", "|---|---|---|---|---|---|---|---|---|---|"]
     best = least_risk(df)
     overlap = ties(df, best)
     marked = df[df["label"].notna()]
     L += [_row(r["label"], r) for r in marked.to_dict("records")]
     L += [_row("least risk", best), ""]
+    many = len(df[["t_c", "v"]].drop_duplicates()) > 1
     L += ["Under this mix, of 10,000 parcels: " + "; ".join(
-        f"{r['label']} hits {r['in_10000_overload']:.0f} too hard and does not sort {r['in_10000_not_scraped']:.0f} "
+        f"{r['label']}" + (f" at t_c = {r['t_c']:g} s, v = {r['v']:g} m/s" if many else "")
+        + f" hits {r['in_10000_overload']:.0f} too hard and does not sort {r['in_10000_not_scraped']:.0f} "
         f"({r['in_10000_any']:.0f} break some constraint, 95 %: {_range(r['p_any_lo'], r['p_any_hi'])})"
         for r in marked.to_dict("records")) + ".",
         "",
