@@ -272,8 +272,9 @@ def test_distribution_bounds_wider_than_the_belt_are_refused_or_left_out():
     with pytest.raises(fencesweep.SpecError, match="spans 0.9 m across the belt > P_max = 0.7 m"):
         RS.parse(spec(population=pop))
     sp = RS.parse(spec(population=dict(pop, too_large="skip")))
-    drawn = PO.draw(sp.population, 100)
+    drawn, fewer = PO.draw(sp.population, 100), PO.draw(sp.population, 30)
     assert drawn["A"].max() <= 0.7 and drawn["too_large"] > 0 and drawn["drawn"] == 100 + drawn["too_large"]
+    assert all(np.array_equal(drawn[c][:30], fewer[c]) for c in PO.SIZES + PO.PLACES)  # redrawn in stream order
 
 
 @pytest.mark.parametrize("change, message", [
