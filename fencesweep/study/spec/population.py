@@ -4,9 +4,10 @@ The parcels' sizes and masses (L, A, m1) come either from a file of measured par
 (`parcels: FILE`, CSV or Parquet, one row per parcel, drawn with replacement) or from one
 scipy.stats distribution per column, truncated to its bounds ({dist: NAME, min, max, and the
 distribution's own parameters}). Where a parcel lies when the fence starts is drawn apart:
-dP uniform across the part of the belt where the parcel fits (0 .. P_max minus its extent
-across the belt; a distribution given for dP draws the fraction of that room, min >= 0, max <= 1), R_s uniform over the trigger window {min, max} (the leading edge's x when the
-drive starts), phi0 one value. dP and R_s may be given a distribution of their own instead.
+dP uniform across the part of the belt where the parcel fits (0 .. P_max minus its extent across
+the belt; a distribution given for dP draws the fraction of that room, 0 <= min < max <= 1), R_s
+uniform over the trigger window {min, max} (the leading edge's x when the drive starts), phi0 one
+value. dP and R_s may be given a distribution of their own instead.
 
 Draws are plain pseudo-random numbers (numpy's PCG64, seeded): sample k is the same for any
 number of workers and for every element, and sample k of a longer run is sample k of a shorter
