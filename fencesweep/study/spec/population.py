@@ -249,12 +249,14 @@ def _check_fit(pop: Population) -> None:
     e_L, e_A = extent_factors(pop.columns["phi0"].value)
     if pop.parcels is not None:
         ext = pop.parcels["L"] * e_L + pop.parcels["A"] * e_A
-        over = np.flatnonzero(ext > pop.P_max * (1 + 1e-12))
+        over = np.flatnonzero(ext + _fixed_dP(pop) > pop.P_max * (1 + 1e-12))  # a fixed dP: from there
         if len(over) and pop.too_large == "error":
             r = int(over[0])
             raise SpecError(f"population.parcels {pop.source!r}: {len(over)} of {pop.n_file} parcels are wider than "
                             f"the belt and are refused, e.g. row {r + 1}: L = {pop.parcels['L'][r]:g}, A = "
-                            f"{pop.parcels['A'][r]:g} spans {ext[r]:.4g} m across it > P_max = {pop.P_max:g} m; set "
+                            f"{pop.parcels['A'][r]:g} spans {ext[r]:.4g} m across it"
+                            + (f" from dP = {_fixed_dP(pop):g} m" if _fixed_dP(pop) else "")
+                            + f" > P_max = {pop.P_max:g} m; set "
                             f"population.too_large: skip to leave them out (they are counted in the table)")
         keep = np.ones(pop.n_file, bool)
         keep[over] = False
@@ -264,7 +266,7 @@ def _check_fit(pop: Population) -> None:
             raise SpecError(f"population.parcels {pop.source!r}: every parcel is wider than the belt")
         return
     L, A = pop.columns["L"], pop.columns["A"]
-    widest = L.hi * e_L + A.hi * e_A
+    widest = L.hi * e_L + A.hi * e_A + _fixed_dP(pop)
     if widest > pop.P_max and pop.too_large == "error":
         raise SpecError(f"population: a parcel of L = {L.hi:g}, A = {A.hi:g} (the bounds' largest) spans {widest:.4g} "
                         f"m across the belt > P_max = {pop.P_max:g} m and would be refused; lower A.max (and L.max), "
