@@ -168,6 +168,11 @@ def report(sp, df, t_seq, events, t_fixed, seq, same, args) -> list:
           "(replayed, no new cycles):", "",
           "| p_max | below / above / undecided | sequential cycles | fixed n | fixed cycles | differ at the cap | "
           "fixed / sequential | cap / sequential |", "|---|---|---|---|---|---|---|---|", *scan_rows(sp, events), "",
+          f"**What would save more.** The {dec.get('undecided', 0)} elements undecided at the cap take "
+          f"{dec.get('undecided', 0) * sp.cap} of the sequential stop's {cycles_seq} cycles: a futility stop (give up "
+          f"on an element whose interval cannot leave p_max before the cap) would save most of them, at the price of "
+          f"a wider interval there; it is not done here. A cap that the elements near p_max reach sooner (or a p_max "
+          f"off the map's plateau, the table above) saves more than the looks can.", "",
           f"Check: the sequential rule replayed on the fixed runs' events (the same parcels, samples 0 .. "
           f"{sp.cap - 1}) stops every element at the same look with the same decision as `fencesweep risk`: "
           f"{'yes' if same else '**no**'}.", ""]
