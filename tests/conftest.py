@@ -60,8 +60,9 @@ def _fence_in_load(o, t, L, A, grow):
 def fence_manifold(row, vals):
     """The depths of the fence's manifold points in a trajectory row (docs/model.md §5.2, written
     here apart from the engine, every corner on the fence's +n side): the axis of least
-    penetration among the fence's face (corners in the span, the point under the tip) and the
-    load's four edges (the deeper end of the fence inside the load); [] when the fence misses it."""
+    penetration among the fence's face (corners in the span, the point under the tip, measured
+    as its edge measures the tip within 1 %: (5.7)) and the load's four edges (the deeper end of
+    the fence inside the load); [] when the fence misses it."""
     L, A, l = vals["L"], vals["A"], vals["l"]
     ca, sa = math.cos(row.alpha), math.sin(row.alpha)
     c, s = math.cos(row.phi), math.sin(row.phi)
@@ -80,19 +81,25 @@ def fence_manifold(row, vals):
            for e, m in enumerate(margins)):
         return []
     face = [-h for sd, h in sh if 0 <= sd <= l]
-    under, u_own = None, -math.inf
+    u_own, u_edge, beyond = -math.inf, -1, -math.inf
     for i in range(4):
         (si, hi_), (sj, hj) = sh[i], sh[(i + 1) % 4]
         if (si < l) != (sj < l):
             (sc, hc), (sb, hb) = ((si, hi_), (sj, hj)) if si < l else ((sj, hj), (si, hi_))
             own = -(hc + (l - sc) / (sb - sc) * (hb - hc))
             if own > u_own:
-                u_own, under = own, min(own, -hb)
-    m_face = max(face + [u_own])
-    best, depths = m_face, [d for d in face + ([under] if under is not None else []) if d > 0]
+                u_own, beyond, u_edge = own, -hb, (2, 1, 3, 0)[i]  # the edge (5.8) from corner i
+    m_u = u_own  # U as its edge measures the tip end, while the two agree within 1 %
+    under = None  # U: the tip end below its edge, or the corner beyond the tip if shallower
+    if u_edge >= 0 and e_hi != u_edge:
+        m_u = max(margins[u_edge][1], 0.99 * u_own)
+        under = min(margins[u_edge][1], beyond)
+    m_face = max(face + [m_u])
+    bias = -1e-10 * l if any(d > 0 for d in face) else 1e-10 * l  # the face wins ties while a corner touches
+    best, depths = m_face + bias, [d for d in face + ([under] if under is not None else []) if d > 0]
     for e in range(4):
         cand = [m for k, m in enumerate(margins[e]) if (e_lo, e_hi)[k] != e]
-        if cand and max(cand) < best - 1e-10 * l:
+        if cand and max(cand) < best:
             best, depths = max(cand), [max(cand)] if max(cand) > 0 else []
     return sorted(depths, reverse=True)
 

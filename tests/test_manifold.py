@@ -16,6 +16,7 @@ import pytest
 
 from fencesweep import resolve
 from fencesweep.kernel.jit import python_callable
+from fencesweep.kernel.numerics import FACE_TOL
 from fencesweep.model.prepare import prepare
 from fencesweep.model.scenes.contacts import APART, N_SLOTS
 from fencesweep.model.scenes.cycle import layout as CL
@@ -87,6 +88,25 @@ def test_the_force_turns_at_the_tip_without_a_jump():
     xs = x_switch * (1 + np.array([-1e-6, -1e-9, 1e-9, 1e-6]))
     forces = [fence_force(D, x, theta)[0] for x in xs]
     assert max(forces) - min(forces) < 1e-5 * forces[0]
+
+
+@plain_python
+@pytest.mark.parametrize("theta", [0.001, 0.01, 0.1, 0.14, 0.15, 0.3])
+def test_a_face_across_the_tip_keeps_its_corner_within_face_tol(theta):
+    # the bottom face 1 mm behind the line at its corner 5 mm short of the tip, descending past
+    # it by theta: the face (the corner, and U: the tip below that edge, (D + x tan theta) cos
+    # theta deep) while the edge lies within acos(1 - FACE_TOL) of the fence, then the tip alone
+    # on the edge's axis, as deep (docs/model.md (5.7)); the 1e-10 l bias alone gave the tip
+    # alone from 6e-4 rad on
+    D, x = 1e-3, 5e-3
+    tip = D * math.cos(theta) + x * math.sin(theta)
+    n, pushing = fence_force(D, x, -theta)
+    if theta < math.acos(1.0 - FACE_TOL):
+        assert pushing == 2
+        assert n == pytest.approx(K1 * (D**1.5 + tip**1.5), rel=1e-9)
+    else:
+        assert pushing == 1
+        assert n == pytest.approx(K1 * tip**1.5, rel=1e-9)
 
 
 @plain_python

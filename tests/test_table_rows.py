@@ -51,6 +51,11 @@ CAUSES = {
     # a 0.18 ms step across the kink gave 3,345 N for 3,428 N (2.4 % low; docs/model.md (5.7))
     "the face across the tip turns parallel at its peak": dict(drive="rigid", t_c=2.0, v=2.25, L=0.566317,
                                                                A=0.128232, m1=6.27104, dP=0.338547),
+    # a short load resting across the tip (its corner in the span, U deeper): the face's measure
+    # (U's own depth) and its edge's (the tip's, own cos(phi - alpha)) parted by the 1e-10 l bias
+    # at 6e-4 rad, where the manifold flipped between two points and one every few ms (685
+    # steps); the peak 166.7 N at the default setting, 163.0 N at 0.398 (numerics.FACE_TOL)
+    "a face resting across the tip": dict(drive="rigid", t_c=1.9, L=0.2, A=0.1, m1=15.0, dP=0.0, R_s=0.2),
 }
 #: step factors at which the skimming tip below was missed: 0.5 and 0.398 before the fixes
 SKIM = dict(drive="rigid", t_c=1.7, v=2.75, L=0.36654, A=0.108028, m1=9.83879, dP=0.405206)

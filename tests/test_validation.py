@@ -57,23 +57,18 @@ def test_csv_matches_the_scenes():
 #: ill-conditioned in the positions), is met because the approach is integrated APPROACH_TOL
 #: tighter than the cycle (kernel/numerics.py).
 KNOWN_MISSES: dict[str, str] = {
-    # One manifold (docs/model.md §5.2): the reference's second
-    # implementation of (5.7) does not agree with the engine on these yet; left open, measured:
-    "long_near_free": "reference: a fence touch at 7e-37 m at the pivot, the engine none",
-    "tiny_load_far": "reference chatters past its 20,000 events (failed); engine scraped",
-    "small_far_linear_flexible": "peak_force 12,113 N, reference 12,832 N (5.6e-2)",
+    # One manifold (docs/model.md §5.2): the one scene the reference's second implementation of
+    # (5.7) does not meet yet, measured (the other six once here agree since the face measures U
+    # as its edge does within FACE_TOL and U pushes as the tip end on its edge):
     "slow_long_near_tc0.9": "peak_force 1.2e-4 off: the reference holds a corner on the face "
                             "while it is still on the rail (alpha < 0) for 6.6e-7 s",
-    "long_near_e0.9": "reference chatters past its 20,000 events (failed); engine scraped",
-    "long_near_linear": "peak_force 3,156 N, reference 8,866 N",
-    "resting_on_free_fence": "reference chatters past its 20,000 events (failed); engine escaped",
 }
-#: Scenes on which the reference itself fails (its event handling of (5.7) chatters); the CSV
-#: test expects exactly that until it is fixed.
-REFERENCE_CHATTERS = {"tiny_load_far", "long_near_e0.9", "resting_on_free_fence"}
-#: ... and the one where its rail touch flag disagrees with its own rail force (a touch at zero
-#: force at the pivot; its fence force there, 8 N, the engine does not see: KNOWN_MISSES)
-REFERENCE_ZERO_TOUCH = {"long_near_free"}
+#: Scenes on which the reference itself fails (its event handling chatters); the CSV test
+#: expects exactly that. None now.
+REFERENCE_CHATTERS: set[str] = set()
+#: ... and those where its rail touch flag disagrees with its own rail force (a touch at zero
+#: force at the pivot). None now.
+REFERENCE_ZERO_TOUCH: set[str] = set()
 
 
 def _param(ref):

@@ -83,6 +83,22 @@ ONSET_STEP = 1e-6
 #: (docs/model.md (5.7)): a bias, not a memory, so that the choice is the state's alone.
 CONTACT_HYSTERESIS = 1e-10
 
+#: The face against the edge under the tip (docs/model.md (5.7)): the under-tip point U and the
+#: tip end on U's edge are one point, measured along the fence's normal (U's own depth) and along
+#: the edge's (the edge's own measure), apart by the factor cos of the edge's angle to the fence.
+#: The face measures U along the edge's normal, the same number (a tie, which the bias gives to
+#: the face while one of its corners touches), while that angle is within acos(1 - FACE_TOL)
+#: (8 degrees): a face lying across the tip keeps its corner in the span and U (the paper's S3).
+#: Beyond it U is measured along the fence's normal shrunk by 1 - FACE_TOL, continuously, and a
+#: tilted edge under the tip takes over as before. With the 1e-10 l bias alone the choice flipped
+#: where own (1 - cos) = 1e-10 l, at 6e-4 rad for a 0.6 mm overlap, and a face resting across the
+#: tip chattered between two points and one (worst_tc row 1778: 685 steps, its peak 163-167 N with
+#: the step; now 133.51 N at every step factor, 210 steps). Measured (the rows of results/audit.md,
+#: the dP cuts of results/tip.md, the e = 1 graze): the same for FACE_TOL from 1e-3 to 5e-2; at 0.2
+#: a tilted edge's corner and tip both pushed again (humps 2.1, the graze's energy off 1.9e-3); at
+#: 1e-5 the rigid cut's hump rose from 1.33 to 1.76.
+FACE_TOL = 0.01
+
 #: A touch (docs/model.md (11.10)): the load-fence force above TOUCH_FORCE x the free-fall force
 #: F_ff (~6 uN for the defaults); touches give n_impacts and contact_time (t_A dated from the
 #: force's first onset, t_B where the last touch falls to the floor). Without a floor a load

@@ -480,6 +480,13 @@ AXIS_ORDER = (AXIS_F, 0, 1, 2, 3)       # exact ties of the biased measures: F, 
 MANIFOLD_HYSTERESIS = 1e-10
 # the rectangle's edges as (corner, next corner) of CycleModel.cx / cy
 EDGE_CORNERS = ((0, 1), (1, 2), (2, 3), (3, 0))
+# the edge line e of (5.8) (0: x' = L/2, 1: x' = -L/2, 2: y' = A/2, 3: y' = -A/2) of an edge
+# given by its two corners, in either order
+EDGE_LINE = {frozenset((0, 1)): 2, frozenset((1, 2)): 1, frozenset((2, 3)): 3, frozenset((3, 0)): 0}
+# kappa of (5.7): the face measures U as U's edge measures the fence's tip end (its depth along
+# the edge's normal) unless U's own depth, shrunk by 1 - kappa, is deeper (the edge more than
+# acos(1 - kappa) from the fence's line)
+FACE_TOL = 0.01
 # The load's four edge lines k are numbered as the edges.  A point P' of the load's frame
 # has the margins (L/2 - P'_x, L/2 + P'_x, A/2 - P'_y, A/2 + P'_y): > 0 on the load's side
 # of line k, and the margin of line e is the depth delta_e of (5.8).  Along the fence,
@@ -765,24 +772,24 @@ class CycleModel:
         hU = sn.hj[jc] + lam * (sn.hj[jc2] - sn.hj[jc])
         return lam, -sg * hU, -sg * sn.hj[jc2]
 
+    def u_tip_depth(self, sn, mode):
+        """The depth of the fence's tip end P(u_b) below U's edge (5.8): U's point on branch 0."""
+        return self.depth_at(sn, EDGE_LINE[frozenset(mode.u_edge)], self.end_u(sn, mode, 1))
+
     def u_point(self, sn, mode):
-        """The under-tip point U (5.16): pushes like a corner at s = l."""
+        """The under-tip point U (5.7): the shallower of the fence's tip end below U's edge (as
+        that edge's axis pushes it, (5.8)-(5.10)) and the corner C' beyond the tip behind the
+        fence's line, pushed as a corner (5.4) with the in-span corner C's side."""
         jc, jc2 = mode.u_edge
-        sg = mode.cf_sigma[jc]
-        lam, dU, dC2 = self.u_depths(sn, mode, mode.u_edge)
-        g1, g2 = sn.G[jc], sn.G[jc2]
-        rx = g1[2] + lam * (g2[2] - g1[2])        # U - X: the load's material point at U
-        ry = g1[3] + lam * (g2[3] - g1[3])
-        vx, vy = sn.u - sn.om * ry, sn.w + sn.om * rx
-        ca, sa = sn.ca, sn.sa
         if mode.u_term == 0:
-            D = dU
-            Dd = -sg * ((-vx * sa + vy * ca) - sn.ald * self.l)
-        else:                                     # C' is the shallower: its depth and rate
-            D = dC2
-            Dd = -sg * ((-g2[4] * sa + g2[5] * ca) - sn.ald * sn.sj[jc2])
-        return (D, Dd, -sg * sa, sg * ca, ca, sa, vx * ca + vy * sa, rx, ry,
-                self.l * ca, self.l * sa)
+            return self.edge_point(sn, mode, EDGE_LINE[frozenset(mode.u_edge)], 1)
+        sg = mode.cf_sigma[jc]
+        gx, gy, rx, ry, vx, vy = sn.G[jc2]
+        ca, sa = sn.ca, sn.sa
+        s2 = sn.sj[jc2]
+        D = -sg * sn.hj[jc2]
+        Dd = -sg * ((-vx * sa + vy * ca) - sn.ald * s2)
+        return (D, Dd, -sg * sa, sg * ca, ca, sa, vx * ca + vy * sa, rx, ry, s2 * ca, s2 * sa)
 
     # ---- the fence's part inside the load, [u_a, u_b] of (5.7) ------------------
     @staticmethod
@@ -872,10 +879,20 @@ class CycleModel:
         if X == AXIS_F:
             ds = [-mode.cf_sigma[j] * sn.hj[j] for j in range(4) if mode.cf_region[j] == ON]
             if mode.u_edge is not None:
-                ds.append(self.u_depths(sn, mode, mode.u_edge)[1])
+                ds.append(self.u_measure(sn, mode))
             return max(ds) if ds else math.inf
         return max(self.depth_at(sn, X, self.end_u(sn, mode, end)) for end in (0, 1)
                    if self.end_is_point(mode, end))
+
+    def u_measure(self, sn, mode):
+        """U's part of the face's measure (5.7): the depth of the fence's tip end below U's edge,
+        as that edge's axis measures it, or U's own depth times 1 - kappa if deeper; U's own
+        depth where the fence leaves the load through U's edge."""
+        own = self.u_depths(sn, mode, mode.u_edge)[1]
+        e = EDGE_LINE[frozenset(mode.u_edge)]
+        if mode.bind[1] == e:
+            return own
+        return max(self.depth_at(sn, e, self.end_u(sn, mode, 1)), (1.0 - FACE_TOL) * own)
 
     def face_corner_max(self, sn, mode):
         """The deepest of the corners in span, -sigma_j h_j (-inf if none)."""
@@ -907,9 +924,7 @@ class CycleModel:
         behind the line, -sigma_j h_j > 0, while it is not: a corner that is no point yet),
         +eta when U is its only point.  (A bias by which of the face's points is deepest made a
         face lying flat across the tip switch axes at every crossing of its two ends' depths.)"""
-        if mode.axis == AXIS_F:
-            return any(mode.cf_region[j] == ON and mode.cf_state[j] != OFF for j in range(4))
-        return any(mode.cf_region[j] == ON and -mode.cf_sigma[j] * sn.hj[j] > 0.0 for j in range(4))
+        return any(mode.cf_region[j] == ON and (mode.cf_behind[j] or mode.cf_state[j] != OFF) for j in range(4))
 
     @staticmethod
     def end_is_point(mode, end):
@@ -1155,8 +1170,7 @@ class CycleModel:
             elif kind == "sgL":
                 out.append(mode.sigma_L * self.centroid_side(sn))
             elif kind == "u_term":
-                _, dU, dC2 = self.u_depths(sn, mode, mode.u_edge)
-                out.append(dU - dC2)
+                out.append(self.u_tip_depth(sn, mode) - self.u_depths(sn, mode, mode.u_edge)[2])
             elif kind == "u_edge":
                 # the deeper of the two edges that cross s = l (5.16)
                 out.append(self.u_depths(sn, mode, mode.u_edge)[1]
@@ -1316,8 +1330,7 @@ class CycleModel:
         # "ax": the axis is chosen again in refresh_manifold (the one in use excluded)
 
     def _fresh_u(self, sn, mode):
-        _, dU, dC2 = self.u_depths(sn, mode, mode.u_edge)
-        mode.u_term = 0 if dU <= dC2 else 1
+        mode.u_term = 0 if self.u_tip_depth(sn, mode) <= self.u_depths(sn, mode, mode.u_edge)[2] else 1
         if mode.axis == AXIS_F:
             self._classify_point(sn, mode, "u", 0)
         else:
@@ -1365,13 +1378,6 @@ class CycleModel:
             dj = -mode.cf_sigma[j] * sn.hj[j]
             if abs(dj) > 1e-13:
                 mode.cf_behind[j] = dj > 0.0
-        cross = self.crossing_edges(mode)
-        if mode.u_edge not in cross:
-            if cross:
-                mode.u_edge = max(cross, key=lambda ed: self.u_depths(sn, mode, ed)[1])
-                self._fresh_u(sn, mode)
-            else:
-                mode.u_edge, mode.u_term, mode.u_state = None, 0, OFF
         lo, up, miss = self.line_sets(mode)
         old_bind = list(mode.bind)
         if miss:
@@ -1385,9 +1391,19 @@ class CycleModel:
                     mode.bind[end] = pick(cand, key=lambda k: self.line_param(sn, k))
             if mode.bind[0] < 0 or mode.bind[1] < 0:
                 mode.touch = True          # O or T inside, no line outside both: [u_a, u_b] is there
-            elif mode.bind != old_bind or not mode.touch:
+            elif mode.bind != old_bind:
+                # (with the ends' lines unchanged the "tch" events keep it: re-read from the state
+                # at a "tch" root, within round-off of 0, the flag flipped back at the same instant)
                 length = (self.end_u(sn, mode, 1) - self.end_u(sn, mode, 0)) * self.l
                 mode.touch = length >= -self.D_hyst if mode.touch else length > 0.0
+        # U's edge after [u_a, u_b]: U on its branch 0 is the tip end u_b below that edge
+        cross = self.crossing_edges(mode)
+        if mode.u_edge not in cross:
+            if cross:
+                mode.u_edge = max(cross, key=lambda ed: self.u_depths(sn, mode, ed)[1])
+                self._fresh_u(sn, mode)
+            else:
+                mode.u_edge, mode.u_term, mode.u_state = None, 0, OFF
         # the face's bias: U or a corner its deepest point, from the state where the face's
         # points changed or no "fb" event followed it (no axis in use)
         old = mode.axis

@@ -16,7 +16,7 @@ from fencesweep.kernel.jit import kernel
 import math
 
 from fencesweep.model.contact import coulomb, kelvin_force
-from fencesweep.model.scenes.load import corner_motion, corner_offset
+from fencesweep.model.scenes.load import corner_offset
 
 APART, PUSH, CLIPPED = 0, 1, 2
 N_SLOTS = 10
@@ -24,7 +24,7 @@ RAIL0 = 4
 TIP = 8
 PIVOT = 9
 #: the manifold's tag (docs/model.md (5.7)): 0-3 a load edge e; FACE + i + 4 b the fence's face, U on
-#: edge i, b the branch of its depth (under_tip: 0 its own, 1 the corner's beyond the tip)
+#: the edge from corner i, b its branch (0: the tip end below that edge, 1: the corner beyond the tip)
 FACE = 4
 
 
@@ -134,6 +134,18 @@ def edge_margin(e, plx, ply, hl, hw):
 
 
 @kernel(inline=True)
+def side_edge(i):
+    """The load edge e of (5.8) from corner i to corner i + 1 mod 4 (load.corner_offset's order)."""
+    if i == 0:
+        return 2
+    if i == 1:
+        return 1
+    if i == 2:
+        return 3
+    return 0
+
+
+@kernel(inline=True)
 def fence_in_load(olx, oly, tlx, tly, hl, hw, grow):
     """The fence's part inside the load, [u_a, u_b] of P(u) = u T (docs/model.md (5.7)), O' =
     (olx, oly), T' = (tlx, tly) in the load's frame: u cut by each edge's half-plane, the load
@@ -212,35 +224,14 @@ def under_tip_edge(y, hl, hw, fl, ca, sa, cphi, sphi, iw):
     return best, deep
 
 
-@kernel()
-def under_tip(i, b, y, hl, hw, fl, ca, sa, dal, cphi, sphi, iw):
-    """The under-tip point U on load edge i (docs/model.md (5.7)): its offset from the centroid
-    (rx, ry), the load's velocity there (vx, vy), its depth D_U = min(own depth, that of the corner
-    beyond the tip) and its rate, the side sigma of the in-span corner C, and the branch of the min
-    (0 its own, 1 the corner's). b = -1 takes the shallower; b = 0 or 1 the branch frozen for the
-    step, as the edge is (under_tip_edge chose it): a change of either is an event. lambda is not
-    clamped."""
+@kernel(inline=True)
+def beyond_corner(i, y, hl, hw, ca, sa, cphi, sphi):
+    """Of the corners i and i + 1 mod 4 of the edge that carries U (docs/model.md (5.7)): (C, the one
+    in the span, C', the one beyond the tip), by their s along the fence."""
     j = (i + 1) % 4
-    c, cb = i, j  # the in-span corner C and the one beyond, C' (the two corners' motion once each)
-    rcx, rcy, gcx, gcy, vcx, vcy = corner_motion(c, y, hl, hw, cphi, sphi)
-    rbx, rby, gbx, gby, vbx, vby = corner_motion(cb, y, hl, hw, cphi, sphi)
-    sc, sb = gcx * ca + gcy * sa, gbx * ca + gby * sa
-    if sb < sc:
-        c, cb = j, i
-        rcx, rcy, gcx, gcy, vcx, vcy, rbx, rby, gbx, gby, vbx, vby = (rbx, rby, gbx, gby, vbx, vby,
-                                                                      rcx, rcy, gcx, gcy, vcx, vcy)
-        sc, sb = sb, sc
-    lam = (fl - sc) / (sb - sc) if sb != sc else 0.0
-    rx = rcx + lam * (rbx - rcx)
-    ry = rcy + lam * (rby - rcy)
-    vx = y[3] - y[5] * ry
-    vy = y[4] + y[5] * rx
-    sg = iw[c]
-    d_own = -sg * (-(y[0] + rx) * sa + (y[1] + ry) * ca)
-    d_beyond = -sg * (-gbx * sa + gby * ca)
-    if b == 1 or (b < 0 and d_beyond < d_own):
-        return rx, ry, vx, vy, d_beyond, -sg * ((-vbx * sa + vby * ca) - dal * sb), sg, 1
-    return rx, ry, vx, vy, d_own, -sg * ((-vx * sa + vy * ca) - dal * fl), sg, 0
+    si, _ = corner_s_h(i, y, hl, hw, ca, sa, cphi, sphi)
+    sj, _ = corner_s_h(j, y, hl, hw, ca, sa, cphi, sphi)
+    return (i, j) if si <= sj else (j, i)
 
 
 @kernel(inline=True)

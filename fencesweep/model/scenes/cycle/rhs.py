@@ -13,7 +13,8 @@ from fencesweep.model.contact import belt_friction
 from fencesweep.model.drive import drive_angle
 from fencesweep.model.scenes.contacts import (APART, FACE, PIVOT, PUSH, RAIL0, TIP, corner_fence_force,
                                               corner_fence_geometry, corner_rail_force, fence_in_load, pivot_local,
-                                              tip_edge_force, tip_edge_normal, tip_local, tip_position, under_tip)
+                                              tip_edge_force, tip_edge_normal, tip_local, tip_position,
+                                              beyond_corner, side_edge)
 from fencesweep.model.scenes.cycle.layout import (AX_CA, AX_CPHI, AX_DAL, AX_DMAX, AX_FRAME, AX_FX, AX_FY, AX_NF,
                                                   AX_NR, AX_PDISS, AX_PFRIC, AX_SA, AX_SPHI, AX_TAU, AX_TQ,
                                                   FM_KELVIN, FM_KINEMATIC, IW_CODE, IW_EDGE, IW_LOAD, IW_MODE,
@@ -94,14 +95,17 @@ def edge_point_sum(e, u, code, y, p, ca, sa, dal, cphi, sphi, aux):
 
 
 @kernel(inline=True)
-def under_tip_sum(i, b, y, p, iw, ca, sa, dal, cphi, sphi, aux):
-    """Add the force of the under-tip point U on load edge i, its depth on branch b (docs/model.md
-    (5.7)): a corner's force (5.4) at s = l."""
-    fl = p[Lp.FL]
-    rx, ry, vx, vy, D, Dd, sg, _ = under_tip(i, b, y, 0.5 * p[Lp.LL], 0.5 * p[Lp.AA], fl, ca, sa, dal, cphi, sphi, iw)
-    a, b, c, d, n, pd, pf = corner_fence_force(rx, ry, vx, vy, fl, D, Dd, sg, ca, sa, p[Lp.KC], p[Lp.CD], p[Lp.LAW],
-                                               p[Lp.MU2], p[Lp.EPSV], iw[IW_CODE + TIP] == PUSH)
-    add_contact(aux, AX_NF, a, b, c, d, n, pd, pf, D)
+def beyond_sum(i, y, p, iw, ca, sa, dal, cphi, sphi, aux):
+    """Add the force of the under-tip point U on its branch 1 (docs/model.md (5.7)): the corner C'
+    beyond the tip on the edge from corner i, pushed as a corner (5.4) with the in-span corner's side."""
+    hl = 0.5 * p[Lp.LL]
+    hw = 0.5 * p[Lp.AA]
+    c, cb = beyond_corner(i, y, hl, hw, ca, sa, cphi, sphi)
+    rx, ry, gx, gy, gvx, gvy = corner_motion(cb, y, hl, hw, cphi, sphi)
+    s, D, Dd = corner_fence_geometry(gx, gy, gvx, gvy, ca, sa, dal, iw[c])
+    a, b, cc, d, n, pd, pf = corner_fence_force(rx, ry, gvx, gvy, s, D, Dd, iw[c], ca, sa, p[Lp.KC], p[Lp.CD],
+                                                p[Lp.LAW], p[Lp.MU2], p[Lp.EPSV], iw[IW_CODE + TIP] == PUSH)
+    add_contact(aux, AX_NF, a, b, cc, d, n, pd, pf, D)
 
 
 @kernel(inline=True)
@@ -113,10 +117,10 @@ def tip_sum(y, p, iw, ca, sa, dal, cphi, sphi, aux):
     if ct == APART and cp == APART:
         return
     tag = iw[IW_EDGE]
-    if tag >= FACE:
-        if ct != APART:
-            under_tip_sum((tag - FACE) % 4, (tag - FACE) // 4, y, p, iw, ca, sa, dal, cphi, sphi, aux)
+    if tag >= FACE + 4:  # the face's U on its branch 1: the corner beyond the tip
+        beyond_sum(tag - FACE - 4, y, p, iw, ca, sa, dal, cphi, sphi, aux)
         return
+    e = side_edge(tag - FACE) if tag >= FACE else tag  # the face's U on branch 0: the tip end below its edge
     tx, ty = tip_position(p[Lp.FL], ca, sa)
     tlx, tly, dx, dyy = tip_local(tx, ty, y[0], y[1], cphi, sphi)
     olx, oly = pivot_local(y[0], y[1], cphi, sphi)
@@ -124,8 +128,9 @@ def tip_sum(y, p, iw, ca, sa, dal, cphi, sphi, aux):
                                       NU.CONTACT_HYSTERESIS * p[Lp.FL])
     if lo > hi:
         return
-    edge_point_sum(tag, hi, APART if e_hi == tag else ct, y, p, ca, sa, dal, cphi, sphi, aux)
-    edge_point_sum(tag, lo, APART if e_lo == tag else cp, y, p, ca, sa, dal, cphi, sphi, aux)
+    edge_point_sum(e, hi, APART if e_hi == e else ct, y, p, ca, sa, dal, cphi, sphi, aux)
+    if tag < FACE:
+        edge_point_sum(e, lo, APART if e_lo == e else cp, y, p, ca, sa, dal, cphi, sphi, aux)
 
 
 @kernel(inline=True)

@@ -16,7 +16,7 @@ from fencesweep.model import results as Rs
 from fencesweep.model.scenes.contacts import (APART, CLIPPED, FACE, N_SLOTS, PIVOT, PUSH, RAIL0, TIP,
                                               corner_fence_geometry, corner_s_h, edge_margin, edge_point_rate, fence_in_load, next_code,
                                               pivot_local, tip_edge_normal, tip_gap, tip_local, tip_position,
-                                              under_tip, under_tip_edge)
+                                              beyond_corner, side_edge, under_tip_edge)
 from fencesweep.model.scenes.cycle.layout import (AX_CA, AX_CPHI, AX_DAL, AX_FRAME, AX_SA, AX_SPHI, IW_CODE, IW_EDGE,
                                                   IW_LOAD, IW_MODE)
 from fencesweep.model.scenes.cycle.rhs import fence_state
@@ -98,16 +98,34 @@ def edge_measure(e, e_lo, e_hi, ma, mb, d_gap):
 
 
 @kernel(inline=True)
-def face_point(ui, y, p, iw, held, ca, sa, dal, cphi, sphi, d_gap, d_force):
-    """The face's TIP slot (docs/model.md (5.7)): the code of the under-tip point U on load edge ui
-    and the manifold's tag, FACE + ui + 4 x the branch of U's depth (under_tip; no U: APART, FACE).
-    U's code in iw counts only while the face with U on that edge is in use (held)."""
-    if ui < 0:
-        return APART, FACE
-    _, _, _, _, Du, Ddu, _, b = under_tip(ui, -1, y, 0.5 * p[Lp.LL], 0.5 * p[Lp.AA], p[Lp.FL], ca, sa, dal, cphi,
-                                          sphi, iw)
-    return next_code(iw[IW_CODE + TIP] if held else APART, Du, Ddu, True, p[Lp.KC], p[Lp.CD], p[Lp.LAW], d_gap,
-                     d_force), FACE + ui + 4 * b
+def face_point(ui, u, tx, ty, e_hi, y, p, iw, held, ca, sa, dal, cphi, sphi, d_gap, d_force):
+    """The face's TIP slot (docs/model.md (5.7)): the code of the under-tip point U on the edge from
+    corner ui and the manifold's tag, FACE + ui + 4 b. U is the shallower of the fence's tip end
+    P(u) below that edge (b = 0) and the corner C' beyond the tip behind the fence's line (b = 1);
+    none where the tip end lies on that edge or there is no such edge (APART, FACE). Its code in
+    iw counts only while the face with U on that edge is in use (held)."""
+    if ui < 0 or e_hi == side_edge(ui):
+        return APART, FACE + max(ui, 0)
+    hl = 0.5 * p[Lp.LL]
+    hw = 0.5 * p[Lp.AA]
+    c, cb = beyond_corner(ui, y, hl, hw, ca, sa, cphi, sphi)
+    _, _, gx, gy, gvx, gvy = corner_motion(cb, y, hl, hw, cphi, sphi)
+    _, D, Dd = corner_fence_geometry(gx, gy, gvx, gvy, ca, sa, dal, iw[c])
+    plx, ply, _, _ = tip_local(u * tx, u * ty, y[0], y[1], cphi, sphi)
+    if D < edge_margin(side_edge(ui), plx, ply, hl, hw):
+        return next_code(iw[IW_CODE + TIP] if held else APART, D, Dd, True, p[Lp.KC], p[Lp.CD], p[Lp.LAW], d_gap,
+                         d_force), FACE + ui + 4
+    return edge_end_code(side_edge(ui), u, tx, ty, y, p, iw, TIP, held, dal, cphi, sphi, d_gap, d_force), FACE + ui
+
+
+@kernel(inline=True)
+def under_tip_measure(ui, d_own, e_hi, bx, by, hl, hw):
+    """The face's measure of the under-tip point U on load edge ui, U's own depth d_own (docs/model.md
+    (5.7)): the depth below that edge of the fence's tip end (bx, by), as the edge measures it,
+    while the edge lies within acos(1 - FACE_TOL) of the fence; beyond, d_own (1 - FACE_TOL)."""
+    if ui < 0 or e_hi == side_edge(ui):
+        return d_own
+    return max(edge_margin(side_edge(ui), bx, by, hl, hw), (1.0 - NU.FACE_TOL) * d_own)
 
 
 @kernel(inline=True)
@@ -153,11 +171,11 @@ def manifold(y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force):
     c3, D3, s3 = corner_code(3, y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force)
     ui, d_own = under_tip_edge(y, hl, hw, p[Lp.FL], ca, sa, cphi, sphi, iw)
     bias = NU.CONTACT_HYSTERESIS * p[Lp.FL] * (-1.0 if (c0 != APART or c1 != APART or c2 != APART or c3 != APART) else 1.0)
-    axis, _, piv = least_edge(e_lo, e_hi, ax, ay, bx, by, hl, hw, max(max(D0, D1), max(max(D2, D3), d_own)) + bias,
-                              d_gap)
+    m_face = max(max(D0, D1), max(max(D2, D3), under_tip_measure(ui, d_own, e_hi, bx, by, hl, hw))) + bias
+    axis, _, piv = least_edge(e_lo, e_hi, ax, ay, bx, by, hl, hw, m_face, d_gap)
     if axis == FACE:
-        cu, tag = face_point(ui, y, p, iw, cur == FACE and (cur_tag - FACE) % 4 == ui, ca, sa, dal, cphi, sphi,
-                             d_gap, d_force)
+        cu, tag = face_point(ui, hi, tx, ty, e_hi, y, p, iw, cur == FACE and (cur_tag - FACE) % 4 == ui, ca, sa, dal,
+                             cphi, sphi, d_gap, d_force)
         return c0, c1, c2, c3, cu, APART, tag, s0, s1, s2, s3
     code = edge_end_code(axis, lo if piv else hi, tx, ty, y, p, iw, PIVOT if piv else TIP, cur == axis, dal, cphi,
                          sphi, d_gap, d_force)
