@@ -3,10 +3,12 @@ import textwrap
 
 import numpy as np
 import pytest
+import yaml
 
 from fencesweep.model import params as P
 from fencesweep.study.spec import spec as S
 from fencesweep.study.spec import file as specfile
+from fencesweep.study.spec import risk as risk_spec
 
 
 def load(text: str) -> S.Spec:
@@ -161,6 +163,11 @@ def test_shipped_sweeps_parse():
     specs = sorted(pathlib.Path(__file__).parent.parent.joinpath("sweeps").glob("*.yaml"))
     assert {p.stem for p in specs} >= {"b2k2", "tc_v", "placement", "impact_m2", "psi_b2"}
     for p in specs:
+        data = yaml.safe_load(p.read_text())
+        if "population" in data:  # a risk spec (fencesweep risk), not a grid
+            rs = risk_spec.parse(data, p.name, str(p))
+            assert rs.elements and rs.operating and rs.output and rs.output.endswith(".parquet")
+            continue
         sp = specfile.load(p)
         assert sp.n_scenes >= 1 and sp.output and sp.output.endswith(".parquet")
 
