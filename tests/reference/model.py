@@ -1991,7 +1991,7 @@ def _clearances(model, md, ts, Y):
         (s1, h1), (s2, h2) = G[jc], G[jc2]
         den = np.where(s2 - s1 == 0.0, TINY, s2 - s1)
         hU = h1 + (l - s1) / den * (h2 - h1)
-        DU = -sg * hU if md.u_term == 0 else -sg * h2
+        DU = np.minimum(-sg * hU, -sg * h2)   # the edge's depth at s = l, or C''s if shallower
         out["fence"] = np.minimum(out["fence"], -DU)
     rx, ry = l * ca - x, l * sa - yc
     px, py = rx * c + ry * s, -rx * s + ry * c            # T in load axes
