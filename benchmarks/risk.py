@@ -83,6 +83,19 @@ def fixed(sp, events: np.ndarray, seq, p_max: float) -> dict:
             "asked": int(asked.sum())}
 
 
+def save_more(undecided: int, cap: int, cycles_seq: int) -> str:
+    """The page's paragraph on what would save more cycles than the looks do."""
+    if undecided:
+        return (f"**What would save more.** The {undecided} elements undecided at the cap take {undecided * cap} "
+                f"of the sequential stop's {cycles_seq} cycles: a futility stop (give up on an element whose interval "
+                f"cannot leave p_max before the cap) would save most of them, at the price of a wider interval "
+                f"there; it is not done here. A cap that the elements near p_max reach sooner (or a p_max off the "
+                f"map's plateau, the table above) saves more than the looks can.")
+    return ("**What would save more.** No element is undecided at the cap here, so a futility stop would save "
+            "nothing: the fixed sample's size is set by the few elements decided late, near p_max, and the "
+            "saving is the share of the map far from p_max (the table above).")
+
+
 def scan_rows(sp, events: np.ndarray) -> list:
     from fencesweep.study.risk import sequential as SQ
 
@@ -168,11 +181,7 @@ def report(sp, df, t_seq, events, t_fixed, seq, same, args) -> list:
           "(replayed, no new cycles):", "",
           "| p_max | below / above / undecided | sequential cycles | fixed n | fixed cycles | differ at the cap | "
           "fixed / sequential | cap / sequential |", "|---|---|---|---|---|---|---|---|", *scan_rows(sp, events), "",
-          f"**What would save more.** The {dec.get('undecided', 0)} elements undecided at the cap take "
-          f"{dec.get('undecided', 0) * sp.cap} of the sequential stop's {cycles_seq} cycles: a futility stop (give up "
-          f"on an element whose interval cannot leave p_max before the cap) would save most of them, at the price of "
-          f"a wider interval there; it is not done here. A cap that the elements near p_max reach sooner (or a p_max "
-          f"off the map's plateau, the table above) saves more than the looks can.", "",
+          save_more(dec.get('undecided', 0), sp.cap, cycles_seq), "",
           f"Check: the sequential rule replayed on the fixed runs' events (the same parcels, samples 0 .. "
           f"{sp.cap - 1}) stops every element at the same look with the same decision as `fencesweep risk`: "
           f"{'yes' if same else '**no**'}.", ""]
