@@ -779,17 +779,19 @@ class CycleModel:
     def u_point(self, sn, mode):
         """The under-tip point U (5.7): the shallower of the fence's tip end below U's edge (as
         that edge's axis pushes it, (5.8)-(5.10)) and the corner C' beyond the tip behind the
-        fence's line, pushed as a corner (5.4) with the in-span corner C's side."""
+        fence's line, whose depth and rate push at the tip as a corner does (5.4), with the
+        in-span corner C's side."""
         jc, jc2 = mode.u_edge
         if mode.u_term == 0:
             return self.edge_point(sn, mode, EDGE_LINE[frozenset(mode.u_edge)], 1)
         sg = mode.cf_sigma[jc]
-        gx, gy, rx, ry, vx, vy = sn.G[jc2]
+        _, _, _, _, vcx, vcy = sn.G[jc2]
         ca, sa = sn.ca, sn.sa
-        s2 = sn.sj[jc2]
-        D = -sg * sn.hj[jc2]
-        Dd = -sg * ((-vx * sa + vy * ca) - sn.ald * s2)
-        return (D, Dd, -sg * sa, sg * ca, ca, sa, vx * ca + vy * sa, rx, ry, s2 * ca, s2 * sa)
+        D = -sg * sn.hj[jc2]                                   # C''s depth and rate ...
+        Dd = -sg * ((-vcx * sa + vcy * ca) - sn.ald * sn.sj[jc2])
+        rx, ry = self.l * ca - sn.x, self.l * sa - sn.yc         # ... pushed at the tip
+        vx, vy = sn.u - sn.om * ry, sn.w + sn.om * rx
+        return (D, Dd, -sg * sa, sg * ca, ca, sa, vx * ca + vy * sa, rx, ry, self.l * ca, self.l * sa)
 
     # ---- the fence's part inside the load, [u_a, u_b] of (5.7) ------------------
     @staticmethod

@@ -96,15 +96,19 @@ def edge_point_sum(e, u, code, y, p, ca, sa, dal, cphi, sphi, aux):
 
 @kernel(inline=True)
 def beyond_sum(i, y, p, iw, ca, sa, dal, cphi, sphi, aux):
-    """Add the force of the under-tip point U on its branch 1 (docs/model.md (5.7)): the corner C'
-    beyond the tip on the edge from corner i, pushed as a corner (5.4) with the in-span corner's side."""
+    """Add the force of the under-tip point U on its branch 1 (docs/model.md (5.7)): the depth and
+    rate of the corner C' beyond the tip on the edge from corner i, pushing at the tip as a corner
+    does (5.4), with the in-span corner's side."""
     hl = 0.5 * p[Lp.LL]
     hw = 0.5 * p[Lp.AA]
     c, cb = beyond_corner(i, y, hl, hw, ca, sa, cphi, sphi)
-    rx, ry, gx, gy, gvx, gvy = corner_motion(cb, y, hl, hw, cphi, sphi)
-    s, D, Dd = corner_fence_geometry(gx, gy, gvx, gvy, ca, sa, dal, iw[c])
-    a, b, cc, d, n, pd, pf = corner_fence_force(rx, ry, gvx, gvy, s, D, Dd, iw[c], ca, sa, p[Lp.KC], p[Lp.CD],
-                                                p[Lp.LAW], p[Lp.MU2], p[Lp.EPSV], iw[IW_CODE + TIP] == PUSH)
+    _, _, gx, gy, gvx, gvy = corner_motion(cb, y, hl, hw, cphi, sphi)
+    _, D, Dd = corner_fence_geometry(gx, gy, gvx, gvy, ca, sa, dal, iw[c])
+    fl = p[Lp.FL]
+    rx, ry = fl * ca - y[0], fl * sa - y[1]  # at the tip: the load's material point there
+    a, b, cc, d, n, pd, pf = corner_fence_force(rx, ry, y[3] - y[5] * ry, y[4] + y[5] * rx, fl, D, Dd, iw[c], ca, sa,
+                                                p[Lp.KC], p[Lp.CD], p[Lp.LAW], p[Lp.MU2], p[Lp.EPSV],
+                                                iw[IW_CODE + TIP] == PUSH)
     add_contact(aux, AX_NF, a, b, cc, d, n, pd, pf, D)
 
 
