@@ -57,14 +57,20 @@ _nothing = logging.getLogger("fencesweep.study").info
 
 def load_spec(spec: Any) -> S.Spec:
     """A spec.Spec from a YAML file's path, the parsed YAML of a spec (a dict) or a Spec."""
-    if isinstance(spec, S.Spec):
+    return _spec_from(spec, S.Spec, specfile.load, specfile.parse, "spec")
+
+
+def _spec_from(spec: Any, cls: type, load: Callable, parse: Callable, what: str):
+    """A `cls` from a YAML file's path (load), its parsed YAML (a dict: parse) or a `cls` itself;
+    TypeError naming what is allowed otherwise."""
+    if isinstance(spec, cls):
         return spec
     if isinstance(spec, (str, os.PathLike)):
-        return specfile.load(spec)
+        return load(spec)
     if isinstance(spec, dict):
-        return specfile.parse(spec, source=_yaml_text(spec))
-    raise TypeError(f"spec must be the path of a YAML spec, a dict (the spec's parsed YAML) or a "
-                    f"fencesweep.study.spec.spec.Spec, not {type(spec).__name__}")
+        return parse(spec, source=_yaml_text(spec))
+    raise TypeError(f"spec must be the path of a YAML {what}, a dict (its parsed YAML) or a "
+                    f"{cls.__module__}.{cls.__name__}, not {type(spec).__name__}")
 
 
 def _yaml_text(data: dict) -> str:
@@ -328,14 +334,7 @@ def sensitivity(spec: Any, *, out: str | Path | None = None, jobs: int | None = 
 def _load_risk_spec(spec: Any):
     from fencesweep.study.spec import risk as RS
 
-    if isinstance(spec, RS.RiskSpec):
-        return spec
-    if isinstance(spec, (str, os.PathLike)):
-        return RS.load(spec)
-    if isinstance(spec, dict):
-        return RS.parse(spec, source=_yaml_text(spec))
-    raise TypeError(f"spec must be the path of a YAML risk spec, a dict (its parsed YAML) or a "
-                    f"fencesweep.study.spec.risk.RiskSpec, not {type(spec).__name__}")
+    return _spec_from(spec, RS.RiskSpec, RS.load, RS.parse, "risk spec")
 
 
 def _check_risk_output(sp, out: Path, overwrite: bool) -> None:
