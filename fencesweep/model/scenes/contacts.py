@@ -16,7 +16,7 @@ from fencesweep.kernel.jit import kernel
 import math
 
 from fencesweep.model.contact import coulomb, kelvin_force
-from fencesweep.model.scenes.load import corner_offset
+from fencesweep.model.scenes.load import corner_motion, corner_offset
 
 APART, PUSH, CLIPPED = 0, 1, 2
 N_SLOTS = 10
@@ -232,6 +232,16 @@ def beyond_corner(i, y, hl, hw, ca, sa, cphi, sphi):
     si, _ = corner_s_h(i, y, hl, hw, ca, sa, cphi, sphi)
     sj, _ = corner_s_h(j, y, hl, hw, ca, sa, cphi, sphi)
     return (i, j) if si <= sj else (j, i)
+
+
+@kernel(inline=True)
+def beyond_depth(i, y, hl, hw, ca, sa, dal, cphi, sphi, iw):
+    """U's branch 1 (docs/model.md (5.7)): the in-span corner C of the edge from corner i, and the
+    depth and rate (5.3) of the corner C' beyond the tip, with C's side."""
+    c, cb = beyond_corner(i, y, hl, hw, ca, sa, cphi, sphi)
+    _, _, gx, gy, gvx, gvy = corner_motion(cb, y, hl, hw, cphi, sphi)
+    _, D, Dd = corner_fence_geometry(gx, gy, gvx, gvy, ca, sa, dal, iw[c])
+    return c, D, Dd
 
 
 @kernel(inline=True)

@@ -14,7 +14,7 @@ from fencesweep.model.drive import drive_angle
 from fencesweep.model.scenes.contacts import (APART, FACE, PIVOT, PUSH, RAIL0, TIP, corner_fence_force,
                                               corner_fence_geometry, corner_rail_force, fence_in_load, pivot_local,
                                               tip_edge_force, tip_edge_normal, tip_local, tip_position,
-                                              beyond_corner, side_edge)
+                                              beyond_depth, side_edge)
 from fencesweep.model.scenes.cycle.layout import (AX_CA, AX_CPHI, AX_DAL, AX_DMAX, AX_FRAME, AX_FX, AX_FY, AX_NF,
                                                   AX_NR, AX_PDISS, AX_PFRIC, AX_SA, AX_SPHI, AX_TAU, AX_TQ,
                                                   FM_KELVIN, FM_KINEMATIC, IW_CODE, IW_EDGE, IW_LOAD, IW_MODE,
@@ -101,9 +101,7 @@ def beyond_sum(i, y, p, iw, ca, sa, dal, cphi, sphi, aux):
     does (5.4), with the in-span corner's side."""
     hl = 0.5 * p[Lp.LL]
     hw = 0.5 * p[Lp.AA]
-    c, cb = beyond_corner(i, y, hl, hw, ca, sa, cphi, sphi)
-    _, _, gx, gy, gvx, gvy = corner_motion(cb, y, hl, hw, cphi, sphi)
-    _, D, Dd = corner_fence_geometry(gx, gy, gvx, gvy, ca, sa, dal, iw[c])
+    c, D, Dd = beyond_depth(i, y, hl, hw, ca, sa, dal, cphi, sphi, iw)
     fl = p[Lp.FL]
     rx, ry = fl * ca - y[0], fl * sa - y[1]  # at the tip: the load's material point there
     a, b, cc, d, n, pd, pf = corner_fence_force(rx, ry, y[3] - y[5] * ry, y[4] + y[5] * rx, fl, D, Dd, iw[c], ca, sa,

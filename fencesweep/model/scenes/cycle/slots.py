@@ -16,7 +16,7 @@ from fencesweep.model import results as Rs
 from fencesweep.model.scenes.contacts import (APART, CLIPPED, FACE, N_SLOTS, PIVOT, PUSH, RAIL0, TIP,
                                               corner_fence_geometry, corner_s_h, edge_margin, edge_point_rate, fence_in_load, next_code,
                                               pivot_local, tip_edge_normal, tip_gap, tip_local, tip_position,
-                                              beyond_corner, side_edge, under_tip_edge)
+                                              beyond_depth, side_edge, under_tip_edge)
 from fencesweep.model.scenes.cycle.layout import (AX_CA, AX_CPHI, AX_DAL, AX_FRAME, AX_SA, AX_SPHI, IW_CODE, IW_EDGE,
                                                   IW_LOAD, IW_MODE)
 from fencesweep.model.scenes.cycle.rhs import fence_state
@@ -108,9 +108,7 @@ def face_point(ui, u, tx, ty, e_hi, y, p, iw, held, ca, sa, dal, cphi, sphi, d_g
         return APART, FACE + max(ui, 0)
     hl = 0.5 * p[Lp.LL]
     hw = 0.5 * p[Lp.AA]
-    c, cb = beyond_corner(ui, y, hl, hw, ca, sa, cphi, sphi)
-    _, _, gx, gy, gvx, gvy = corner_motion(cb, y, hl, hw, cphi, sphi)
-    _, D, Dd = corner_fence_geometry(gx, gy, gvx, gvy, ca, sa, dal, iw[c])
+    _, D, Dd = beyond_depth(ui, y, hl, hw, ca, sa, dal, cphi, sphi, iw)
     plx, ply, _, _ = tip_local(u * tx, u * ty, y[0], y[1], cphi, sphi)
     if D < edge_margin(side_edge(ui), plx, ply, hl, hw):
         return next_code(iw[IW_CODE + TIP] if held else APART, D, Dd, True, p[Lp.KC], p[Lp.CD], p[Lp.LAW], d_gap,
