@@ -1,6 +1,7 @@
 """Cycles drawn in time: one cycle of each named case in frames (cycle_<case>.png: load, fence, drive
 lever, belt and contact forces at 8 instants) and the deflection over a stream of cycles back to
-back (stream_deflection.png, scene stream: the only figure that runs the engine itself).
+back (stream_deflection.png, scene stream: the only figure that runs the engine itself). One
+instant is drawn by draw_frame, which the animation (report/animation.py) draws with too.
 """
 from __future__ import annotations
 
@@ -112,6 +113,85 @@ def _force_label(ax, tail, u, text, color):
             bbox={"boxstyle": "round,pad=0.1", "fc": "white", "ec": "none", "alpha": 0.8})
 
 
+#: the scene's extent along the belt [m] in the cycle frames and the animation
+XLIM = (-0.8, 1.6)
+FENCE_COLOR, LEVER_COLOR, FENCE_FORCE_COLOR, RAIL_FORCE_COLOR = "#b2182b", "0.4", "#2166ac", "#1b7837"
+
+
+def row_at(t, tt: float) -> int:
+    """The trajectory row drawn at time tt: the first at or after it (the last row past the end)."""
+    return min(int(np.searchsorted(t, tt - 1e-12)), len(t) - 1)
+
+
+def frame_title(row, head: str = "", label: str = "") -> str:
+    """A frame's title: head, the row's time, label, the stage; the fence's angle and deflection."""
+    al, aw = float(row["alpha"]), float(row["alpha_w"])
+    gone = int(row["stage"]) < 0
+    stage = "after the exit" if gone else f"stage {RP.STAGE_NAMES.get(int(row['stage']), '?')}"
+    return (f"{head}t = {row['t']:.3f} s" + (f", {label}" if label else "") + f"; {stage}\n"
+            f"alpha = {math.degrees(al):.1f} deg, alpha - alpha_w = {math.degrees(al - aw):+.1f} deg")
+
+
+def _draw_forces(ax, p, row, o, d, nmax) -> None:
+    """The forces on the load, the head at the point of action: the fence's at its centre of
+    pressure s = M / N along the fence, the rail's under the load's lowest corner at x <= 0;
+    length ~ sqrt(N / N_max)."""
+    nvec = np.array([-d[1], d[0]])
+    nf, nr = float(row["N_fence"]), float(row["N_rail"])
+    if nf > 0:
+        s = min(max(float(row["M_fence"]) / nf, 0.0), p["l"])
+        ln = 0.06 + 0.24 * math.sqrt(nf / nmax)
+        _arrow(ax, s * d, ln * nvec, FENCE_FORCE_COLOR)
+        _force_label(ax, s * d - ln * nvec, -nvec, f"{nf:.0f} N" if nf < 1e3 else f"{nf / 1e3:.2f} kN",
+                     FENCE_FORCE_COLOR)
+    if nr > 0:
+        xs, ys = o[:-1, 0], o[:-1, 1]
+        j = int(np.argmin(np.where(xs <= 0.0, ys, np.inf)))
+        ln = 0.06 + 0.18 * math.sqrt(nr / nmax)
+        _arrow(ax, np.array([xs[j], 0.0]), np.array([0.0, ln]), RAIL_FORCE_COLOR)
+        _force_label(ax, np.array([xs[j], -ln]), np.array([0.0, -1.0]), f"rail {nr:.0f} N", RAIL_FORCE_COLOR)
+
+
+def draw_frame(ax, p: dict, row, nmax: float, title: str) -> None:
+    """One instant of a cycle on `ax`, all from one trajectory row: the scene (belt, rail, pivot, far
+    edge), the drive lever alpha_w (dashed), the fence alpha, the load at (x, y, phi) (grey and dashed
+    after its exit; its polygon has gid "load") and the contact forces, scaled by nmax (the largest
+    force of the run). p: the run's P_max, l and the load's L and A. The cycle frames (cycle_<case>.png)
+    and the animation (report/animation.py) both draw with it."""
+    draw_scene(ax, p, XLIM)
+    al, aw = float(row["alpha"]), float(row["alpha_w"])
+    d = np.array([math.cos(al), math.sin(al)])
+    ax.plot([0, p["l"] * math.cos(aw)], [0, p["l"] * math.sin(aw)], color=LEVER_COLOR, lw=1.0, ls="--", zorder=3)
+    ax.plot([0, p["l"] * d[0]], [0, p["l"] * d[1]], color=FENCE_COLOR, lw=3, solid_capstyle="round", zorder=4)
+    gone = int(row["stage"]) < 0
+    o = load_outline(p["L"], p["A"], row["x"], row["y"], row["phi"])
+    ax.fill(o[:, 0], o[:, 1], color="0.8" if gone else "#8c6d31", alpha=0.6 if gone else 0.85, zorder=3, gid="load")
+    ax.plot(o[:, 0], o[:, 1], color="k", lw=0.8, ls="--" if gone else "-", zorder=3)
+    _draw_forces(ax, p, row, o, d, nmax)
+    ax.set_title(title, fontsize=8)
+    ax.set_xlim(*XLIM)
+    ax.set_ylim(-0.5, p["P_max"] + 0.3)  # room under the belt for the rail's and the pivot's force labels
+    ax.set_aspect("equal")
+    ax.tick_params(labelsize=7)
+
+
+def legend_handles() -> list:
+    """The legend of the cycle frames and the animation: fence, lever, rail, the two forces, far edge."""
+    from matplotlib.lines import Line2D
+
+    return [Line2D([], [], color=FENCE_COLOR, lw=3, label="fence (pivot O at the origin)"),
+            Line2D([], [], color=LEVER_COLOR, lw=1, ls="--", label="drive lever alpha_w (the fence's equilibrium)"),
+            Line2D([], [], color="k", lw=3, label="rail (x <= 0), belt edge y = 0"),
+            Line2D([], [], color=FENCE_FORCE_COLOR, lw=1.6, label="force of the fence on the load"),
+            Line2D([], [], color=RAIL_FORCE_COLOR, lw=1.6, label="force of the rail on the load"),
+            Line2D([], [], color="0.4", lw=1, label="far edge y = P_max (slide)")]
+
+
+def largest_force(df) -> float:
+    """The largest contact force of a trajectory (fence or rail), which the arrows are scaled by."""
+    return max(float(df["N_fence"].max()), float(df["N_rail"].max()), 1e-9)
+
+
 def _cycle(res: Path, out: Path, case: str) -> Path:
     plt = pyplot()
     df = RP.read_traj(res, f"{case}_flexible")
@@ -119,58 +199,14 @@ def _cycle(res: Path, out: Path, case: str) -> Path:
     r = df.attrs["results"]
     inst = _instants(df, 8)
     t = df["t"].to_numpy()
-    nmax = max(float(df["N_fence"].max()), float(df["N_rail"].max()), 1e-9)
+    nmax = largest_force(df)
     fig, axes = plt.subplots(4, 2, figsize=(8.6, 10.0))
-    xlim = (-0.8, 1.6)
-    ylim = (-0.5, p["P_max"] + 0.3)  # room under the belt for the rail's and the pivot's force labels
     for k, (ax, (tt, label)) in enumerate(zip(axes.flat, inst)):
-        i = min(int(np.searchsorted(t, tt - 1e-12)), len(t) - 1)
-        row = df.iloc[i]
-        draw_scene(ax, p, xlim)
-        al, aw = float(row["alpha"]), float(row["alpha_w"])
-        d = np.array([math.cos(al), math.sin(al)])
-        nvec = np.array([-math.sin(al), math.cos(al)])
-        ax.plot([0, p["l"] * math.cos(aw)], [0, p["l"] * math.sin(aw)], color="0.4", lw=1.0, ls="--", zorder=3)
-        ax.plot([0, p["l"] * d[0]], [0, p["l"] * d[1]], color="#b2182b", lw=3, solid_capstyle="round", zorder=4)
-        gone = int(row["stage"]) < 0
-        o = load_outline(p["L"], p["A"], row["x"], row["y"], row["phi"])
-        ax.fill(o[:, 0], o[:, 1], color="0.8" if gone else "#8c6d31", alpha=0.6 if gone else 0.85, zorder=3)
-        ax.plot(o[:, 0], o[:, 1], color="k", lw=0.8, ls="--" if gone else "-", zorder=3)
-        # forces on the load, the head at the point of action: the fence's at its centre of
-        # pressure s = M / N along the fence, the rail's under the load's lowest corner at x <= 0;
-        # length ~ sqrt(N / N_max)
-        nf, nr = float(row["N_fence"]), float(row["N_rail"])
-        if nf > 0:
-            s = min(max(float(row["M_fence"]) / nf, 0.0), p["l"])
-            ln = 0.06 + 0.24 * math.sqrt(nf / nmax)
-            _arrow(ax, s * d, ln * nvec, "#2166ac")
-            _force_label(ax, s * d - ln * nvec, -nvec, f"{nf:.0f} N" if nf < 1e3 else f"{nf / 1e3:.2f} kN",
-                         "#2166ac")
-        if nr > 0:
-            xs, ys = o[:-1, 0], o[:-1, 1]
-            j = int(np.argmin(np.where(xs <= 0.0, ys, np.inf)))
-            ln = 0.06 + 0.18 * math.sqrt(nr / nmax)
-            _arrow(ax, np.array([xs[j], 0.0]), np.array([0.0, ln]), "#1b7837")
-            _force_label(ax, np.array([xs[j], -ln]), np.array([0.0, -1.0]), f"rail {nr:.0f} N", "#1b7837")
-        stage = "after the exit" if gone else f"stage {RP.STAGE_NAMES.get(int(row['stage']), '?')}"
-        ax.set_title(f"{k + 1}. t = {row['t']:.3f} s" + (f", {label}" if label else "") + f"; {stage}\n"
-                     f"alpha = {math.degrees(al):.1f} deg, alpha - alpha_w = {math.degrees(al - aw):+.1f} deg",
-                     fontsize=8)
-        ax.set_xlim(*xlim)
-        ax.set_ylim(*ylim)
-        ax.set_aspect("equal")
-        ax.tick_params(labelsize=7)
+        row = df.iloc[row_at(t, tt)]
+        draw_frame(ax, p, row, nmax, frame_title(row, f"{k + 1}. ", label))
     for ax in axes.flat[len(inst):]:
         ax.axis("off")
-    from matplotlib.lines import Line2D
-
-    handles = [Line2D([], [], color="#b2182b", lw=3, label="fence (pivot O at the origin)"),
-               Line2D([], [], color="0.4", lw=1, ls="--", label="drive lever alpha_w (the fence's equilibrium)"),
-               Line2D([], [], color="k", lw=3, label="rail (x <= 0), belt edge y = 0"),
-               Line2D([], [], color="#2166ac", lw=1.6, label="force of the fence on the load"),
-               Line2D([], [], color="#1b7837", lw=1.6, label="force of the rail on the load"),
-               Line2D([], [], color="0.4", lw=1, label="far edge y = P_max (slide)")]
-    fig.legend(handles=handles, loc="lower center", ncol=3, fontsize=8, bbox_to_anchor=(0.5, -0.005))
+    fig.legend(handles=legend_handles(), loc="lower center", ncol=3, fontsize=8, bbox_to_anchor=(0.5, -0.005))
     fig.suptitle(f"One sorting cycle, {RP.CASE_TEXT[case]}; flexible fence 72/570, {WORKING_POINT}\n"
                  f"outcome {r['outcome']} at t = {r['t_exit']:.3f} s, overload {r['overload']:.2f}. x along the "
                  "belt, y across it [m]; arrow heads at the point of action, length ~ sqrt(force)")
