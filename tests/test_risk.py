@@ -57,9 +57,8 @@ def test_interval_covers_the_true_probability_under_repeated_looks(scale):
     of them run to the cap), below and above it (they stop at looks the data choose): the interval
     at the stop covers the truth in >= 93 % of them, for each event and any."""
     p = np.tile(np.array([0.004, 0.003, 0.002, 0.001]) * scale, (200, 1))
-    schedule = SQ.geometric_schedule(80, 2, 8192)
-    st = SQ.run_rounds(200, bernoulli(p, int(11 * scale)), schedule, 0.01, 0.05)
-    ints = SQ.intervals(st, 0.05 / len(schedule))
+    st = SQ.run_rounds(200, bernoulli(p, int(11 * scale)), SQ.look_plan(40, 1.5, 8192, 0.01, 0.05), 0.01)
+    ints = SQ.intervals(st)
     truth = dict(zip(SQ.ALL, [*p[0], p_any(p)[0]]))
     for ev, (_, lo, hi) in ints.items():
         covered = np.mean((lo <= truth[ev]) & (truth[ev] <= hi))
@@ -83,24 +82,36 @@ def test_sequential_stop_reaches_the_decisions_of_a_fixed_large_sample():
     hi_side = 10 ** rng.uniform(np.log10(0.025), np.log10(0.5), 30)
     share = np.concatenate([lo_side, hi_side])
     p = np.column_stack([share * 0.4, share * 0.3, share * 0.2, share * 0.1])
-    schedule = SQ.geometric_schedule(80, 2, 16384)
-    seq = SQ.run_rounds(60, bernoulli(p, 21), schedule, 0.01, 0.05)
-    fixed = SQ.run_rounds(60, bernoulli(p, 21), schedule, 0.01, 0.05, sequential=False)
+    plan = SQ.look_plan(40, 1.5, 16384, 0.01, 0.05)
+    seq = SQ.run_rounds(60, bernoulli(p, 21), plan, 0.01)
+    fixed = SQ.run_rounds(60, bernoulli(p, 21), plan, 0.01, sequential=False)
     assert (fixed.decision != SQ.UNDECIDED).all()
     assert (seq.decision == fixed.decision).all()
     assert (seq.decision == np.where(p_any(p) < 0.01, SQ.BELOW, SQ.ABOVE)).all()
     assert fixed.cycles > 5 * seq.cycles
 
 
-def test_fixed_size_for_finds_the_smallest_schedule_size():
-    p = np.column_stack([np.array([0.0005, 0.3]), np.zeros(2), np.zeros(2), np.zeros(2)])
-    schedule = SQ.geometric_schedule(80, 2, 8192)
-    st = SQ.run_rounds(2, bernoulli(p, 2), schedule, 0.01, 0.05)
-    ev = bernoulli(p, 2)(np.arange(2), 0, 8192).any(axis=2)
-    n = SQ.fixed_size_for(st, lambda m: ev[:, :m].sum(axis=1), schedule, 0.01, 0.05)
-    assert n in schedule and n <= st.n.max()
-    smaller = [m for m in schedule if m < n]
-    assert all((SQ.decide(ev[:, :m].sum(axis=1), m, 0.01, 0.05) != st.decision).any() for m in smaller)
+def test_fixed_size_for_finds_the_smallest_size_and_the_least_sizes_bound_the_stop():
+    p = np.column_stack([np.array([0.0005, 0.3, 0.0]), np.zeros(3), np.zeros(3), np.zeros(3)])
+    st = SQ.run_rounds(3, bernoulli(p, 2), SQ.look_plan(40, 1.5, 8192, 0.01, 0.05), 0.01)
+    cum = np.cumsum(bernoulli(p, 2)(np.arange(3), 0, 8192).any(axis=2), axis=1)
+    n, asked = SQ.fixed_size_for(st.decision, cum, 0.01, 0.05)
+    assert asked.all() and n <= st.n.max()
+    assert (SQ.decide(cum[:, n - 1], n, 0.01, 0.05) == st.decision).all()
+    assert (SQ.decide(cum[:, n - 2], n - 1, 0.01, 0.05) != st.decision).any()
+    least = SQ.least_sizes(st.decision, cum, 0.01, 0.05)
+    assert (least <= st.n).all() and least.max() == n
+    assert least[2] == SQ.zero_break_size(0.01, 0.05) == 368  # no failure: ln(0.025) / ln(0.99) = 367.04
+
+
+def test_the_look_plan_spends_alpha_once_and_looks_where_a_decision_can_be_made():
+    sizes, alphas = SQ.look_plan(40, 1.5, 8192, 0.01, 0.05)
+    assert sum(alphas) == pytest.approx(0.05) and len(sizes) == len(alphas)
+    assert sizes[0] == 40 and sizes[-1] == 8192 and all(a < b for a, b in zip(sizes, sizes[1:]))
+    assert alphas[0] == pytest.approx(SQ.SCREEN * 0.05) and alphas[1] == pytest.approx(2 * alphas[2])
+    n2 = sizes[1]  # the first size at which a unit without a failure is decided below at alpha_2
+    assert SQ.decide(0, n2, 0.01, alphas[1]) == SQ.BELOW and SQ.decide(0, n2 - 1, 0.01, alphas[1]) == ""
+    assert SQ.look_plan(100, 2, 50, 0.01, 0.05) == ([50], [0.05])
 
 
 def test_clopper_pearson_at_the_edges():
@@ -189,7 +200,7 @@ def test_a_killed_run_keeps_its_rounds(tmp_path):
 
     def dies(vals, trajectory=False):
         calls["n"] += 1
-        if calls["n"] > 200:  # in the third round (40 + 80 per element before it)
+        if calls["n"] > 400:  # in the second round, after its first chunk (40 per element, then 256)
             raise KeyboardInterrupt
         return _fake(vals)
 

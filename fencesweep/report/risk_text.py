@@ -46,6 +46,13 @@ def _row(name: str, r) -> str:
             f"| {r['in_10000_deflection']:.0f} | {r['in_10000_residual']:.0f} | {int(r['n'])} | {r['decision']} |")
 
 
+def _levels(alphas) -> str:
+    """The looks' levels 1 - alpha_k, as a short list (older tables: one alpha for every look)."""
+    if not isinstance(alphas, (list, tuple)):
+        return f"{1 - alphas:.4g} at each"
+    return ", ".join(f"{1 - a:.4g}" for a in alphas[:4]) + (", ..." if len(alphas) > 4 else "")
+
+
 def risk_section(res: Path) -> list:
     import pandas as pd
 
@@ -65,8 +72,9 @@ def risk_section(res: Path) -> list:
          f"{rk['limits']['residual_amplitude']:g} rad).", "",
          f"Each element is sampled in rounds ({', '.join(map(str, rk['schedule']))} parcels) until the interval of "
          f"P(any) lies wholly below or above p_max = {rk['p_max']:g} ({rk['p_max'] * 1e4:g} in 10,000). Intervals: "
-         f"Clopper-Pearson at {1 - rk['alpha_per_look']:.4g} per look, which by the union bound over the "
-         f"{rk['looks']} looks keeps {rk['confidence']:.0%} at the look where an element stops; the draws are "
+         f"Clopper-Pearson at a level fixed for each look in advance ({_levels(rk['alpha_per_look'])}), the "
+         f"{rk['looks']} looks' alphas summing to {1 - rk['confidence']:.2g}, which by the union bound keeps "
+         f"{rk['confidence']:.0%} at the look where an element stops; the draws are "
          f"plain pseudo-random (seeded), the same parcels for every element. {counts['cycles']} cycles in all, "
          f"against {counts['cycles_at_cap']} for every element at the cap "
          f"([`risk_map.png`](figures/risk_map.png), [`risk.md`](risk.md): the cycles the sequential stop saves).", "",

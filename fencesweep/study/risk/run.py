@@ -236,7 +236,7 @@ def run_risk(sp: RiskSpec, out: Path, jobs: int, resume: bool = True, local: boo
     bar = progress_bar(0, f"{name} (risk)", progress, unit="cycle")
     rounds = Rounds(bundle, work, salt(sp), run, bar)
     try:
-        state = SQ.run_rounds(len(sp.units), rounds, sp.schedule(), sp.p_max, 1 - sp.confidence)
+        state = SQ.run_rounds(len(sp.units), rounds, sp.plan(), sp.p_max)
     finally:
         bar.close()
     record = {"seconds": None, "jobs": jobs if local else None, "warm_up": warm, "cycles": state.cycles,

@@ -19,9 +19,9 @@ EVENT_DOC = {"overload": "overload > risk.limits.overload (the fence hits the pa
              "deflection": "deflection_max > the deflection limit (dalpha_perm unless risk.limits says; §11)",
              "residual": "residual_amplitude > risk.limits.residual_amplitude (the fence is not home; §11)",
              "any": "any of the four"}
-INTERVAL = ("Clopper-Pearson (exact binomial) at level 1 - alpha / K, alpha = 1 - confidence, K = the looks of "
-            "the schedule: by the union bound the intervals of every look hold together with probability >= "
-            "confidence, so the one at the data-chosen stop does too; valid for i.i.d. pseudo-random draws")
+INTERVAL = ("Clopper-Pearson (exact binomial) at level 1 - alpha_k at look k, the alpha_k of the plan summing to "
+            "alpha = 1 - confidence: by the union bound the intervals of every look hold together with probability "
+            ">= confidence, so the one at the data-chosen stop does too; valid for i.i.d. pseudo-random draws")
 
 
 def samples_path(out) -> Path:
@@ -31,7 +31,6 @@ def samples_path(out) -> Path:
 
 def _columns(sp: RiskSpec, state: SQ.State) -> tuple:
     """{column: values}, {column: (unit, doc)} of the per-unit table."""
-    alpha_look = (1 - sp.confidence) / len(sp.schedule())
     units = sp.units
     cols, meta = {}, {}
     for name in sp.element_names:
@@ -45,11 +44,13 @@ def _columns(sp: RiskSpec, state: SQ.State) -> tuple:
     cols["n"] = state.n
     meta["n"] = ("-", "parcels sampled (cycles run) for this element and operating point")
     cols["looks"] = state.looks
-    meta["looks"] = ("-", "looks taken on the schedule")
+    meta["looks"] = ("-", "looks taken on the plan")
+    cols["level"] = 1 - state.alpha
+    meta["level"] = ("-", "the level of the intervals: 1 - alpha_k of the look where the unit stopped")
     cols["decision"] = state.decision.astype(str)
     meta["decision"] = ("-", "below / above: the P(any) interval lies wholly below / above p_max; undecided: the cap "
                         "was reached first")
-    for ev, (p, lo, hi) in SQ.intervals(state, alpha_look).items():
+    for ev, (p, lo, hi) in SQ.intervals(state).items():
         j = SQ.ALL.index(ev)
         cols[f"n_{ev}"] = state.counts[:, j]
         meta[f"n_{ev}"] = ("-", f"parcels sampled with {EVENT_DOC[ev]}")
@@ -76,12 +77,12 @@ def _arrow(cols: dict, meta: dict):
 
 
 def _provenance(sp: RiskSpec, state: SQ.State, parcels: dict, record: dict) -> dict:
-    K = len(sp.schedule())
+    sizes, alphas = sp.plan()
     pop = sp.population
     return {"spec": sp.normalized(), "spec_hash": sp.hash, "spec_path": sp.path, "spec_source": sp.source,
             "versions": store.versions(),
-            "risk": {"p_max": sp.p_max, "confidence": sp.confidence, "schedule": sp.schedule(), "looks": K,
-                     "alpha_per_look": (1 - sp.confidence) / K, "interval": INTERVAL,
+            "risk": {"p_max": sp.p_max, "confidence": sp.confidence, "schedule": sizes, "looks": len(sizes),
+                     "alpha_per_look": alphas, "interval": INTERVAL,
                      "samples": "plain pseudo-random (numpy PCG64, seeded), the same parcels for every unit",
                      "limits": sp.normalized()["risk"]["limits"]},
             "population": pop.definition() | {"drawn": parcels["drawn"], "too_large_left_out_of_draws":
