@@ -5,6 +5,8 @@
                own classes stay as they are
   cache.py     where compiled entry points are cached; first-run notice and compile lock
   locator.py   Numba's cache locator for the package's functions
+  internals.py every private or internal name of Numba, numba-cuda and llvmlite kernel/ uses, in
+               one list, each with what it is used for
   share.py     a first run's compile on two cores (a helper process and a cache of kernel IR)
   numerics.py  every tolerance and step bound of the engine, each with its reason
   rk.py        Runge-Kutta steps (DOPRI5, RK4), error norm, dense output, step controller

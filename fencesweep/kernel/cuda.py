@@ -28,6 +28,7 @@ import threading
 import types as pytypes
 
 from fencesweep.errors import GpuUnavailable
+from fencesweep.kernel.internals import NAMES  # a list of names: imports nothing of Numba itself
 
 #: how to get the GPU path, said by every message about it missing
 INSTALL = 'pip install -e ".[gpu]" (numba-cuda with the CUDA compiler and runtime as wheels; no system CUDA)'
@@ -57,7 +58,7 @@ def load():
         try:
             with _row_stack_alias():
                 cuda = importlib.import_module("numba.cuda")
-                importlib.import_module("numba.cuda.np.arrayobj")  # the module that registers np.row_stack
+                importlib.import_module(NAMES["cuda_arrayobj"].module)  # the module that registers np.row_stack
         except ImportError as exc:
             raise GpuUnavailable(f"the GPU path needs numba-cuda, which is not installed here ({exc}): {INSTALL}") \
                 from None
@@ -174,10 +175,9 @@ def cache_kernel(kernel) -> bool:
     sources (kernel/locator.py KernelLocator): numba-cuda's own cache would key it by the kernel's
     file alone, and keep a stale kernel after an edit of a function it calls. Without a place to
     write it (or on the simulator) the kernel is compiled in every process. Whether it is cached."""
-    if kernel.__class__.__module__.startswith("numba.cuda.simulator"):
+    if kernel.__class__.__module__.startswith(NAMES["cuda_simulator"].module):
         return False
-    from numba.cuda.dispatcher import CUDACache, CUDACacheImpl
-
+    from fencesweep.kernel.internals import CUDACache, CUDACacheImpl
     from fencesweep.kernel.locator import KernelLocator
 
     class Impl(CUDACacheImpl):
@@ -208,19 +208,20 @@ def _asked_cc(cc: tuple):
     """numba.cuda.dispatcher.get_current_device answering `cc` (module docstring), unless a GPU is
     there; put back afterwards."""
     cuda = load()
-    import numba.cuda.dispatcher as dispatcher
-    from numba.core.compiler_lock import global_compiler_lock
+    from fencesweep.kernel.internals import global_compiler_lock, lookup
 
+    where = NAMES["get_current_device"]
+    dispatcher = importlib.import_module(where.module)
     with _LOCK, global_compiler_lock:
-        real = dispatcher.get_current_device
+        real = lookup("get_current_device")
         if cuda.is_available():
             yield
             return
-        dispatcher.get_current_device = lambda: _AskedDevice(cc)
+        setattr(dispatcher, where.attr, lambda: _AskedDevice(cc))
         try:
             yield
         finally:
-            dispatcher.get_current_device = real
+            setattr(dispatcher, where.attr, real)
 
 
 def compile_ptx(kernel_fn, signature: str, cc: tuple, opt: bool = True) -> str:

@@ -55,18 +55,15 @@ import functools
 import types as pytypes
 
 from fencesweep.kernel.numba_setup import numba  # first: Numba loaded without what it does not need
-import llvmlite.binding as llvm
 import numpy as np
 from numba import njit, types
-from numba.core import caching
-from numba.core import typed_passes as tp, untyped_passes as up
-from numba.core.codegen import JITCodeLibrary
-from numba.core.compiler import Compiler, CompilerBase
-from numba.core.compiler_lock import global_compiler_lock
-from numba.core.compiler_machinery import PassManager
-from numba.core.registry import CPUDispatcher
 
 from fencesweep.kernel import cache, share
+from fencesweep.kernel.internals import (  # Numba's internal names: kernel/internals.py says what each is for
+    ATTRS, NAMES, AnnotateTypes, CompileResultCacheImpl, Compiler, CompilerBase, CPUDispatcher, DeadBranchPrune,
+    FixupArgs, FunctionCache, GenericRewrites, InlineOverloads, IRLegalization, IRProcessing, JITCodeLibrary,
+    NativeLowering, NoPythonBackend, NopythonTypeInference, NoPythonSupportedFeatureValidation, PassManager,
+    RewriteDynamicRaises, RewriteSemanticConstants, TranslateByteCode, global_compiler_lock, lookup)
 from fencesweep.kernel.libraries import EntryLibrary, KernelLibrary
 from fencesweep.kernel.locator import KernelLocator
 
@@ -113,17 +110,17 @@ class KernelCompiler(_OwnLibrary, CompilerBase):
     def define_pipelines(self):
         pm = PassManager("fencesweep kernel")
         for pass_class, what in (
-                (up.TranslateByteCode, "analyzing bytecode"), (up.FixupArgs, "fix up args"),
-                (up.IRProcessing, "processing IR"),
-                (up.RewriteSemanticConstants, "rewrite semantic constants"),
-                (up.DeadBranchPrune, "dead branch pruning"), (up.GenericRewrites, "nopython rewrites"),
-                (up.RewriteDynamicRaises, "rewrite dynamic raises"),
-                (tp.NopythonTypeInference, "nopython frontend"),
-                (tp.InlineOverloads, "inline overloaded functions"),
-                (tp.NoPythonSupportedFeatureValidation, "ensure features that are in use are in a valid form"),
-                (tp.IRLegalization, "ensure IR is legal prior to lowering"),
-                (tp.AnnotateTypes, "annotate types"), (tp.NativeLowering, "native lowering"),
-                (tp.NoPythonBackend, "nopython mode backend")):
+                (TranslateByteCode, "analyzing bytecode"), (FixupArgs, "fix up args"),
+                (IRProcessing, "processing IR"),
+                (RewriteSemanticConstants, "rewrite semantic constants"),
+                (DeadBranchPrune, "dead branch pruning"), (GenericRewrites, "nopython rewrites"),
+                (RewriteDynamicRaises, "rewrite dynamic raises"),
+                (NopythonTypeInference, "nopython frontend"),
+                (InlineOverloads, "inline overloaded functions"),
+                (NoPythonSupportedFeatureValidation, "ensure features that are in use are in a valid form"),
+                (IRLegalization, "ensure IR is legal prior to lowering"),
+                (AnnotateTypes, "annotate types"), (NativeLowering, "native lowering"),
+                (NoPythonBackend, "nopython mode backend")):
             pm.add_pass(pass_class, what)
         pm.finalize()
         return [pm]
@@ -138,7 +135,11 @@ class EntryCompiler(_OwnLibrary, Compiler):
 # ------------------------------------------------------------------ while the package compiles
 def _llvm_lock():
     """llvmlite's lock around every call into LLVM (None if llvmlite has none)."""
-    return getattr(getattr(llvm.ffi, "lib", None), "_lock", None)
+    try:
+        lib = lookup("llvm_lib")
+    except ImportError:
+        return None
+    return getattr(lib, ATTRS["llvm_lock"].name, None)
 
 
 class _Own:
@@ -153,8 +154,8 @@ def _events_off() -> None:
     lock = _llvm_lock()
     if lock is not None:
         with lock._lock:  # no thread between an acquire callback and its release
-            for pair in list(getattr(lock, "_cblist", ())):
-                if getattr(pair[0], "__module__", "") == "numba.core.base":
+            for pair in list(getattr(lock, ATTRS["lock_callbacks"].name, ())):
+                if getattr(pair[0], "__module__", "") == NAMES["lock_events_module"].module:
                     lock.unregister(*pair)
                     _Own.events.append(pair)
 
@@ -206,14 +207,14 @@ class KernelDispatcher(CPUDispatcher):
                         f"fencesweep.kernel.jit.python_callable gives Python a callable copy")
 
 
-class _EntryCacheImpl(caching.CompileResultCacheImpl):
+class _EntryCacheImpl(CompileResultCacheImpl):
     """Numba's cache of an entry point's compile result, kept where KernelLocator says (kernel/cache.py's
     directory); Numba's own locators when it cannot (nowhere to write)."""
 
-    _locator_classes = [KernelLocator, *caching.CompileResultCacheImpl._locator_classes]
+    _locator_classes = [KernelLocator, *CompileResultCacheImpl._locator_classes]
 
 
-class EntryCache(caching.FunctionCache):
+class EntryCache(FunctionCache):
     _impl_class = _EntryCacheImpl
 
 

@@ -8,8 +8,7 @@ from __future__ import annotations
 import contextlib
 
 from fencesweep.kernel.numba_setup import numba  # noqa: F401  (first: Numba loaded as the kernels need it)
-from numba.core.codegen import JITCodeLibrary
-from numba.core.compiler_lock import global_compiler_lock
+from fencesweep.kernel.internals import ATTRS, JITCodeLibrary, global_compiler_lock
 
 
 def _optimize_functions_once(library, ll_module) -> None:
@@ -73,9 +72,10 @@ def kernel_libraries(codegen):
     """Within the block, a library Numba makes or loads with `codegen` is a KernelLibrary: for a
     kernel function loaded from a shared compile's bitcode (kernel/share.py), where Numba makes
     the library itself. Holds Numba's compiler lock, as every library is made under it."""
+    library_class = ATTRS["library_class"].name
     with global_compiler_lock:
-        codegen._library_class = KernelLibrary  # the instance's, over its class's
+        setattr(codegen, library_class, KernelLibrary)  # the instance's, over its class's
         try:
             yield
         finally:
-            del codegen._library_class
+            delattr(codegen, library_class)

@@ -8,12 +8,11 @@ from __future__ import annotations
 from pathlib import Path
 
 from fencesweep.kernel.numba_setup import numba  # noqa: F401  first: Numba loaded as the kernels load it
-from numba.core import caching
-
 from fencesweep.kernel import cache
+from fencesweep.kernel.internals import CacheLocator
 
 
-class KernelLocator(caching._CacheLocator):
+class KernelLocator(CacheLocator):
     """A function's cache files go to root(), under the path of its module, and are valid while
     the kernel hash is (kernel/cache.py)."""
 

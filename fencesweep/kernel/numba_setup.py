@@ -22,6 +22,8 @@ from __future__ import annotations
 import contextlib
 import sys
 
+from fencesweep.kernel.internals import NAMES, lookup  # a list of names: imports nothing of Numba itself
+
 
 @contextlib.contextmanager
 def _hidden(*modules: str):
@@ -55,11 +57,12 @@ class _BlasProbe:
 
 def _import_numba_support_without_probes() -> None:
     """Import Numba's NumPy support with the BLAS probe deferred (module docstring)."""
-    if "numba.np.arraymath" in sys.modules:
+    module = NAMES["arraymath"].module
+    if module in sys.modules:
         return  # already imported: nothing to save
     with _hidden("scipy.linalg.cython_blas"):
-        import numba.np.arraymath as arraymath
-    arraymath._HAVE_BLAS = _BlasProbe(arraymath._check_blas)
+        arraymath = lookup("arraymath")
+    setattr(arraymath, NAMES["HAVE_BLAS"].attr, _BlasProbe(lookup("check_blas")))
 
 
 _import_numba_support_without_probes()

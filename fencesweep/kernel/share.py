@@ -57,9 +57,9 @@ from typing import Callable, NamedTuple
 
 from fencesweep.kernel.numba_setup import numba  # first: Numba loaded as the kernels load it
 from numba import typeof
-from numba.core import caching
 
 from fencesweep.kernel import cache
+from fencesweep.kernel.internals import REBUILD_PAYLOAD, CompileResultCacheImpl, FunctionCache, NullCache
 from fencesweep.kernel.libraries import kernel_libraries
 from fencesweep.kernel.locator import KernelLocator
 from fencesweep.resources import usable_cores
@@ -161,7 +161,7 @@ class _Locator(KernelLocator):
         return _session.where / "cache"
 
 
-class _BitcodeImpl(caching.CompileResultCacheImpl):
+class _BitcodeImpl(CompileResultCacheImpl):
     """Numba's cache of a compile result with the library as LLVM bitcode (a kernel function's
     library has IR and no machine code: kernel/libraries.py KernelLibrary) and no type annotation
     text; loaded into a KernelLibrary again."""
@@ -171,16 +171,17 @@ class _BitcodeImpl(caching.CompileResultCacheImpl):
     def reduce(self, cres):
         fndesc = cres.fndesc
         fndesc.typemap = fndesc.calltypes = None  # as Numba's own reduce: not needed, may not pickle
-        return (cres.library.serialize_using_bitcode(), fndesc, cres.environment, cres.signature,
-                cres.objectmode, cres.lifted, None, cres.reload_init,
-                tuple(cres._find_referenced_environments()))
+        parts = dict(libdata=cres.library.serialize_using_bitcode(), fndesc=fndesc, env=cres.environment,
+                     signature=cres.signature, objectmode=cres.objectmode, lifted=cres.lifted, typeann=None,
+                     reload_init=cres.reload_init, referenced_envs=tuple(cres._find_referenced_environments()))
+        return tuple(parts[k] for k in REBUILD_PAYLOAD)  # in the order of CompileResult._rebuild's parameters
 
     def rebuild(self, target_context, payload):
         with kernel_libraries(target_context.codegen()):
             return super().rebuild(target_context, payload)
 
 
-class KernelCache(caching.FunctionCache):
+class KernelCache(FunctionCache):
     """The cache of one kernel function during a shared compile (module docstring)."""
 
     _impl_class = _BitcodeImpl
@@ -312,7 +313,7 @@ def shared_compile(plan: str | None, vals: dict | None = None):
         session, _session = _session, None
         if session is not None:
             for disp in session.cached:
-                disp._cache = caching.NullCache()  # the directory goes: nothing more is kept there
+                disp._cache = NullCache()  # the directory goes: nothing more is kept there
             session.stop_helper()
             shutil.rmtree(session.where, ignore_errors=True)
 
