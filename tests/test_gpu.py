@@ -342,14 +342,23 @@ def test_a_run_that_cannot_be_prepared_is_a_failed_row_and_its_thread_runs_a_val
     from fencesweep.study.sweep import gpu
 
     spec = specfile.loads(SIM_SPEC)  # scene = 6 case + 2 (B2 index) + (K2 index)
-    real = prep.prepare
+    real, real_columns = prep.prepare, prep.prepare_columns
 
     def fails_for_b2_300(vals, table=True):
         if vals["B2"] == 300.0:
             raise ValueError("no")
         return real(vals, table)
 
+    def columns_fail_with_it(columns, n, table=True):  # the chunk's columns hold B2 = 300: run by run
+        if 300.0 in np.atleast_1d(columns["B2"]):
+            raise ValueError("no")
+        return real_columns(columns, n, table)
+
     monkeypatch.setattr(prep, "prepare", fails_for_b2_300)
+    monkeypatch.setattr(prep, "prepare_columns", columns_fail_with_it)
+    _, P, failed = gpu._prepare(0, np.arange(4), (spec, None))  # B2 0 and 72: on columns, none failed
+    assert failed == {} and all(np.array_equal(P[k], real(v, table=False))
+                                for k, v in enumerate(spec.resolve(i) for i in range(4)))
     _, P, failed = gpu._prepare(0, np.arange(12), (spec, None))
     assert sorted(failed) == [4, 5, 10, 11] and set(failed.values()) == {"failed: exception ValueError: no"}
     default = real(params.resolve("cycle"), table=False)

@@ -51,9 +51,9 @@ class Counting:
         self.calls = []
         real = runs.run_models
 
-        def counting(scene, vals_list, simulate=None):
+        def counting(scene, vals_list, simulate=None, vectors=None):
             self.calls += [P.model_key(v) for v in vals_list]
-            return real(scene, vals_list, simulate)
+            return real(scene, vals_list, simulate, vectors)
 
         monkeypatch.setattr(runs, "run_models", counting)
 

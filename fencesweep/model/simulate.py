@@ -52,8 +52,9 @@ def _cycle_compile(vals: dict):
 TRAJECTORY_ROWS = 4096
 
 
-def simulate_resolved(vals: dict, trajectory: bool = False):
-    """Run an already-resolved parameter set (params.resolve).
+def simulate_resolved(vals: dict, trajectory: bool = False, p: np.ndarray | None = None):
+    """Run an already-resolved parameter set (params.resolve); `p`, its parameter vector if it
+    is already prepared (prepare.prepare_columns: a sweep's chunk), else prepared here.
 
     Returns (results dict, trajectory DataFrame or None). The trajectory (cycle and stream) has
     the columns of scenes.cycle.layout.TRAJ_COLUMNS (units in df.attrs["units"]), one row per
@@ -70,7 +71,8 @@ def simulate_resolved(vals: dict, trajectory: bool = False):
     cycles = scene in ("cycle", "stream")
     cold = (lambda: _cycle_compile(vals)) if cycles else contextlib.nullcontext
     with cache.compiling("cycle" if cycles else "impact", cold=cold):
-        p = prepare(vals)
+        if p is None:
+            p = prepare(vals)
         if scene == "stream":
             return _stream(p, vals, trajectory)
         if scene == "cycle":

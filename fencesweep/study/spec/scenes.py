@@ -66,6 +66,14 @@ def relative_damping(B2, K2, I2):
         return np.where(k > 0, B2 / (2.0 * np.sqrt(np.where(k > 0, k, 1.0))), math.nan)
 
 
+def _shared(values: list) -> bool:
+    """Whether the values are all the first, a float's sign included (0.0 and -0.0 differ)."""
+    first = values[0]
+    if values.count(first) != len(values):
+        return False
+    return not isinstance(first, float) or first != 0.0 or len({math.copysign(1.0, x) for x in values}) == 1
+
+
 class Slot:
     """One combination of core values, resolved: its parameter set (None: invalid), the digest of
     its model key without the free axes' values and the number of the free parameters its key uses."""
@@ -214,6 +222,29 @@ class Scenes:
             return values[idx[d]]
         slots, local = self.slots(idx)
         return np.array([s.vals[name] for s in slots])[local]
+
+    def value_columns(self, scenes, names) -> dict:
+        """The parameters `names` of the valid `scenes`' resolved sets (resolved) as columns, for
+        prepare.prepare_columns: a free axis's values as float64; a value the scenes' slots share,
+        as itself; else an array over the scenes (float64 for numbers, objects otherwise)."""
+        idx = self.decode(scenes)
+        slots, local = self.slots(idx)
+        out = {}
+        for name in names:
+            if name in self.free_values:
+                d, values = self.free_values[name]
+                out[name] = values[idx[d]]
+                continue
+            col = [s.vals[name] for s in slots]
+            if _shared(col):
+                out[name] = col[0]
+            elif all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in col):
+                out[name] = np.array(col, dtype=np.float64)[local]
+            else:
+                objects = np.empty(len(col), dtype=object)
+                objects[:] = col
+                out[name] = objects[local]
+        return out
 
     def resolved(self, scenes) -> list:
         """spec.resolve of each of the valid `scenes`: its slot's parameter set with its free axes'

@@ -55,7 +55,9 @@ def _run_chunk(c: int, ids: range, rows: np.ndarray, path: str | None, meta: dic
     on the time.monotonic clock."""
     t0 = time.monotonic()
     spec, simulate = shared or _SHARED
-    results = runs.run_models(spec.scene, _resolved(spec, rows), simulate)
+    fn = simulate or runs.engine()
+    vectors = prepared(spec, rows) if runs.takes_vectors(fn) else None
+    results = runs.run_models(spec.scene, _resolved(spec, rows), fn, vectors)
     t1 = time.monotonic()
     if path is None:
         return c, results, (os.getpid(), t0, t1, t1)
@@ -67,13 +69,30 @@ def _run_chunk(c: int, ids: range, rows: np.ndarray, path: str | None, meta: dic
 _SCENES: tuple = (None, None)
 
 
-def _resolved(spec: S.Spec, rows) -> list:
-    """spec.resolve of each scene of `rows`, on whole columns (spec/scenes.py: resolve runs once
-    per combination of core values, which this process keeps for the sweep's next chunks)."""
+def _scenes(spec: S.Spec) -> Scenes:
+    """The Scenes of `spec` (spec/scenes.py), kept in this process for the sweep's next chunks:
+    resolve runs once per combination of core values."""
     global _SCENES
     if _SCENES[0] is not spec:
         _SCENES = (spec, Scenes(spec))
-    return _SCENES[1].resolved(rows)
+    return _SCENES[1]
+
+
+def _resolved(spec: S.Spec, rows) -> list:
+    """spec.resolve of each scene of `rows`, on whole columns (_scenes)."""
+    return _scenes(spec).resolved(rows)
+
+
+def prepared(spec: S.Spec, rows, table: bool = True):
+    """The parameter vectors of the scenes `rows` (prepare.Vectors), prepared on whole columns
+    (prepare.prepare_columns on Scenes.value_columns); None where that raises: each run then
+    prepares its own, and a run that cannot is a failed row naming the exception."""
+    from fencesweep.model.prepare import COLUMNS, prepare_columns
+
+    try:
+        return prepare_columns(_scenes(spec).value_columns(rows, COLUMNS), len(rows), table)
+    except Exception:  # found run by run, and recorded, by the caller
+        return None
 
 
 def _init_worker(shared: tuple | None, parent: int) -> None:

@@ -2,8 +2,9 @@
 model run (model/scenes/gpu.py), the chunks in batches; orchestration only.
 
 Per batch (consecutive pending chunks, at most `batch_size` runs):
-  1. the runs' parameter vectors (prepare, header only) are made chunk by chunk on the local
-     workers (or in this process with one job), while the GPU runs the batch before;
+  1. the runs' parameter vectors (header only) are made chunk by chunk, each chunk's on whole
+     columns (prepare.prepare_columns), on the local workers (or in this process with one job),
+     while the GPU runs the batch before;
   2. the batch is launched, asynchronously;
   3. the batch before's chunks are written (on the workers: unpacked and written as the CPU's
      chunks are), and each written chunk is handed on (`finished`, as compute.compute_chunks
@@ -85,14 +86,18 @@ def batch_size(free_bytes: int | None) -> int:
 
 
 def _prepare(c: int, rows: np.ndarray, shared: tuple | None = None) -> tuple:
-    """Chunk c's parameter vectors (n, N_P) and {position: reason} of the runs that could not be
-    prepared: their thread runs the default cycle (docs/model.md §12), whose result is discarded
-    (a vector of zeros would step with h = 0 to the step budget)."""
+    """Chunk c's parameter vectors (n, N_P), prepared on whole columns (compute.prepared), and
+    {position: reason} of the runs that could not be prepared (found run by run where the
+    columns' preparation raises): their thread runs the default cycle (docs/model.md §12), whose
+    result is discarded (a vector of zeros would step with h = 0 to the step budget)."""
     from fencesweep.model import params
     from fencesweep.model.layout import N_P
     from fencesweep.model.prepare import prepare
 
     spec, _ = compute.shared(shared)
+    vectors = compute.prepared(spec, rows, table=False)
+    if vectors is not None:
+        return c, vectors.header, {}
     P = np.zeros((len(rows), N_P))
     failed = {}
     for k, vals in enumerate(compute._resolved(spec, rows)):

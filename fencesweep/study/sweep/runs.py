@@ -7,6 +7,7 @@ pass a fake as `simulate`, or replace it there).
 """
 from __future__ import annotations
 
+import inspect
 import math
 import time
 from typing import Callable, Iterable
@@ -42,20 +43,34 @@ def engine() -> Callable:
     return api.simulate_resolved
 
 
-def run_one(scene: str, vals: dict, simulate: Callable | None = None) -> dict:
+def run_one(scene: str, vals: dict, simulate: Callable | None = None, p=None) -> dict:
     """Run one parameter set: its results (a stream's as one chunk row, store.stream_row); a run
-    that raises becomes a row with outcome failed and the reason."""
+    that raises becomes a row with outcome failed and the reason. `p`: its parameter vector,
+    prepared with its chunk's (for an engine that takes it, takes_vectors)."""
     try:
-        res, _ = (simulate or engine())(vals, trajectory=False)
+        fn = simulate or engine()
+        res, _ = fn(vals, trajectory=False) if p is None else fn(vals, trajectory=False, p=p)
         return store.stream_row(res) if scene == "stream" else res
     except Exception as exc:  # recorded, never silent: status names the exception
         return store.failed_result(scene, f"failed: exception {type(exc).__name__}: {exc}")
 
 
-def run_models(scene: str, vals_list: list, simulate: Callable | None = None) -> list:
-    """Run each parameter set (run_one)."""
+def takes_vectors(simulate: Callable) -> bool:
+    """Whether the engine `simulate` takes a run's parameter vector prepared beforehand (its
+    argument `p`, as simulate_resolved does; a test's stand-in does not)."""
+    try:
+        return "p" in inspect.signature(simulate).parameters
+    except (TypeError, ValueError):
+        return False
+
+
+def run_models(scene: str, vals_list: list, simulate: Callable | None = None, vectors=None) -> list:
+    """Run each parameter set (run_one), with its vector of `vectors` (prepare.Vectors of the same
+    runs; None: each run prepares its own)."""
     fn = simulate or engine()
-    return [run_one(scene, vals, fn) for vals in vals_list]
+    if vectors is None:
+        return [run_one(scene, vals, fn) for vals in vals_list]
+    return [run_one(scene, vals, fn, vectors[k]) for k, vals in enumerate(vals_list)]
 
 
 def _warm_rows(spec: S.Spec, rows: Iterable[int], fn: Callable) -> None:
