@@ -86,12 +86,12 @@ def _python(tree: Path, tmp: Path, code: str, *args) -> dict:
 def measure(tree: Path, spec: Path, tmp: Path) -> dict:
     """One round of one tree: the stand-in sweep, then the worker's preparation."""
     s = _python(tree, tmp, bench.SWEEP, spec, tmp / "s.parquet", "cuda", os.cpu_count() or 1, 0, ROOT / "benchmarks")
-    return {"command": s["wall"], "compute": s["timings"]["compute"], "runs": s["runs"],
-            **_python(tree, tmp, WORKER, spec, CHUNK, CHUNK_STEP)}
+    return {"command": s["wall"], "compute": s["timings"]["compute"], "writes": s["timings"]["writes"],
+            "card": s["timings"]["gpu"], "runs": s["runs"], **_python(tree, tmp, WORKER, spec, CHUNK, CHUNK_STEP)}
 
 
 def page(rows: dict, args, names: dict) -> str:
-    keys = ("command", "compute", "card_us", "worker_us", "alone_us")
+    keys = ("command", "compute", "writes", "card", "card_us", "worker_us", "alone_us")
     best = {t: {k: min(r[k] for r in rs) for k in keys} for t, rs in rows.items()}
     runs = next(iter(rows.values()))[0]
     out = ["# Parameter vectors on whole columns (`benchmarks/prepare.py`)", "",
@@ -100,16 +100,26 @@ def page(rows: dict, args, names: dict) -> str:
            f"{names['before']} (one run at a time) against this tree (prepare_columns), alternating, each "
            f"a fresh process, the minimum of {args.rounds} rounds.", "",
            f"The stand-in: the GPU path of {args.spec} ({runs['runs']:,} runs) with the card replaced "
-           "(benchmarks/gpu.py --stand-in), on all cores; `compute` is its compute phase (the vectors, "
-           f"the chunks written and read back, the table's blocks). Per run, on {runs['worker_runs']:,} runs "
+           "(benchmarks/gpu.py --stand-in), on all cores; `compute` is its compute phase: the vectors (on "
+           "the workers), the chunks written (on the workers, `writes`: their seconds summed), the stand-in "
+           "card's answers (`card`: launch to results, in the sweep's process) and, in the sweep's process, "
+           "each chunk read back and the table's blocks written. Per run, on "
+           f"{runs['worker_runs']:,} runs "
            f"(every {CHUNK_STEP}th chunk of {CHUNK}): the GPU path's preparation of a chunk (sweep/gpu.py "
            "_prepare); what a CPU worker does to a chunk before running it (its scenes resolved, each "
            "run's vector); prepare(vals) alone, as `simulate` does for one run.", "",
-           "| tree | stand-in: command s | its compute s | GPU chunk: µs a run | CPU worker: µs a run "
-           "| one run: prepare µs |", "|---|---:|---:|---:|---:|---:|"]
+           "| tree | stand-in: command s | compute s | writes s | card s | GPU chunk: µs a run "
+           "| CPU worker: µs a run | one run: prepare µs |", "|---|---:|---:|---:|---:|---:|---:|---:|"]
     for t in ("before", "this"):
         out.append(f"| {names[t]} | " + " | ".join(f"{best[t][k]:.2f}" for k in keys) + " |")
-    out += ["", "Every round (" + ", ".join(keys) + "):", ""]
+    cores, n = os.cpu_count() or 1, runs["runs"]
+    out += ["", "Of the stand-in's compute phase, the vectors are about GPU chunk µs x runs / cores: "
+            + ", ".join(f"{names[t]} {best[t]['card_us'] * n / 1e6 / cores:.2f} s" for t in ("before", "this"))
+            + "; the chunks' writes about writes / cores: "
+            + ", ".join(f"{names[t]} {best[t]['writes'] / cores:.2f} s" for t in ("before", "this"))
+            + ". The rest is the sweep's process: the card's answers, each chunk read back and the table's "
+            "blocks written (and the workers' results awaited).",
+            "", "Every round (" + ", ".join(keys) + "):", ""]
     for t in ("before", "this"):
         out.append(f"- {names[t]}: " + "; ".join(", ".join(f"{r[k]:.2f}" for k in keys) for r in rows[t]))
     return "\n".join(out) + "\n"
