@@ -20,8 +20,8 @@ TARGETS = {
     "results/figures/cycle_small_far.gif": "assets/cycle_small_far.gif",
     "benchmarks/README.md": None,
 }
-#: anchors that name no heading of their page (on GitHub either) -> the heading meant
-ANCHORS = {"envelopes-design-for-every-package-issue-10": "envelopes-design-for-every-package"}
+#: anchors that name no heading of their page (on GitHub either) -> the heading meant (none today)
+ANCHORS: dict = {}
 #: the README's sections that are its examples, in the order of the examples page
 EXAMPLES = ("One cycle", "Python API", "Python API for sweeps")
 LINK = re.compile(r"\[([^\]]*)\]\(([^)\s]+)\)")
