@@ -1,13 +1,13 @@
 """The warm cycle kernel's instructions, a revision beside this tree: callgrind counts instructions,
-not seconds, so the machine's noise (rounds of benchmarks/warm_revisions.py vary by up to 2x
-here) does not enter.
+not seconds, so the machine's noise (timed rounds of one revision vary by up to 2x on a shared
+2-core machine) does not enter; asv (benchmarks/README.md) cannot hold such counts.
 
     python benchmarks/instructions.py REV [--passes 2] [--out FILE]   -> prints, writes --out (markdown)
 
-Each tree (REV exported from git by benchmarks/revisions.py, and this working tree) gets a
+Each tree (REV exported from git by `git archive` into a temporary folder, and this working tree) gets a
 Numba cache of its own, warmed first. Then, under `valgrind --tool=callgrind` with collection
 switched on only around the measured loop (callgrind_control), one process per tree runs the
-main job's fixed sample of 60 scenes (the seed of benchmarks/warm_revisions.py) through the
+main job's fixed sample of 60 scenes (the seed of benchmarks/asv_bench main_job_sample) through the
 kernel's entry point, `run_cycles`, on parameter vectors its own `prepare` made: `passes`
 passes, and once more with one pass less; the difference over 60 is one cycle's instructions
 (the switching itself cancels). The trees run side by side, one per core.
@@ -20,8 +20,6 @@ import subprocess
 import sys
 import tempfile
 from pathlib import Path
-
-from revisions import export
 
 ROOT = Path(__file__).resolve().parents[1]
 #: one tree: the sample's parameter vectors, then `n` passes of run_cycles with collection on
@@ -50,6 +48,14 @@ subprocess.run(["callgrind_control", "-i", "off", str(os.getpid())], capture_out
 """
 
 
+def export(rev: str, dest: Path) -> Path:
+    """The files git tracks at revision `rev`, written into the new folder `dest`."""
+    dest.mkdir(parents=True)
+    archive = subprocess.run(["git", "archive", rev], cwd=ROOT, capture_output=True, check=True).stdout
+    subprocess.run(["tar", "-x", "-C", str(dest)], input=archive, check=True)
+    return dest
+
+
 def _start(tree: Path, cache: Path, passes: int, out: Path) -> subprocess.Popen:
     env = {"NUMBA_CACHE_DIR": str(cache), "PYTHONPATH": str(tree), "PYTHONHASHSEED": "0", "PATH": "/usr/bin:/bin"}
     cmd = ["valgrind", "--tool=callgrind", "--instr-atstart=no", f"--callgrind-out-file={out}", sys.executable,
@@ -71,9 +77,9 @@ def main() -> None:
     ap.add_argument("--passes", type=int, default=2)
     ap.add_argument("--out", type=Path, default=None)
     a = ap.parse_args()
-    trees = {a.rev: export(a.rev), "this tree": ROOT}
     counts = {}
     with tempfile.TemporaryDirectory() as tmp:
+        trees = {a.rev: export(a.rev, Path(tmp) / "rev"), "this tree": ROOT}
         caches = {name: Path(tmp) / f"cache{k}" for k, name in enumerate(trees)}
         for name, tree in trees.items():  # warm each tree's cache
             subprocess.run([sys.executable, "-c", WORKER.replace("callgrind_control", "true"), "0"], check=True,

@@ -1,21 +1,20 @@
 """More cores, more cycles? A study's cycles per second at 1, 2, 4, ... jobs, the time spent
-outside the cycles and the whole command's time, this tree beside an earlier revision.
+outside the cycles and the whole command's time.
 
     python benchmarks/scaling.py [--spec sweeps/envelope.yaml] [--jobs 1 2 4 ...] [--rounds 1]
-                                 [--before REV] [--out results/scaling.md]  -> prints, writes --out
+                                 [--out results/scaling.md]  -> prints, writes --out
 
 Each run is `fencesweep grid SPEC --jobs J` through the Python API (`run_grid`, the CLI's call),
 in a fresh process with a warm Numba cache, writing to a temporary folder, with its verification
 (as a user runs it). From the run's own record: wall seconds of the sweep, the compute phase
 (`timings["compute"]`, the chunks on the workers), the rest ("outside": planning, loading the
 kernels, the verification, the assembly, the tail), each phase, the workers' seconds running
-chunks summed over the chunks (`runs`: the same work in every tree), and the process's peak
+chunks summed over the chunks (`runs`), and the process's peak
 memory (its own, not the workers'); and the whole command's wall time (the process from its start, its
 imports included: what a user waits for). Cycles per second: the spec's scenes / the sweep's
-seconds. The speed-up is against the 2-job run of the same tree (the bar: 16 jobs >= 6x of 2 jobs
-on a 16-core machine), and for the command against its 1-job run. With --before REV the same
-runs are made with REV's package (benchmarks/revisions.py), interleaved with this tree's, round
-after round. Jobs default to powers of two up to this machine's cores. Run it alone on the
+seconds. The speed-up is against the 2-job run (the bar: 16 jobs >= 6x of 2 jobs
+on a 16-core machine), and for the command against its 1-job run. An earlier revision's
+numbers: `asv continuous REV HEAD` (benchmarks/README.md, asv). Jobs default to powers of two up to this machine's cores. Run it alone on the
 machine: every job count wants every core it asks for.
 """
 from __future__ import annotations
@@ -30,8 +29,6 @@ import tempfile
 import time
 from pathlib import Path
 
-from revisions import export
-
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "results" / "scaling.md"
 
@@ -44,7 +41,7 @@ spec, out, jobs = sys.argv[1], sys.argv[2], int(sys.argv[3])
 run = api.run_grid(spec, out=out, jobs=jobs, overwrite=True, resume=False, progress=False)
 peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # MiB (Linux: kB)
 print(json.dumps({"seconds": run["seconds"], "timings": run["timings"], "scenes": run["scenes"],
-                  "peak_mib": peak, "package": fencesweep.__file__}))
+                  "peak_mib": peak}))
 """
 WARM = "import fencesweep; fencesweep.simulate(case='small_far'); fencesweep.simulate(scene='impact')"
 PHASES = ("load", "plan", "warm_up", "verify", "assemble", "tail", "runs")
@@ -59,31 +56,22 @@ def default_jobs() -> list:
     return jobs if jobs[-1] == cores else jobs + [cores]
 
 
-def _env(tree: Path | None) -> dict:
-    env = dict(os.environ)
-    if tree is not None:  # the earlier revision's package first on the path
-        env["PYTHONPATH"] = str(tree) + os.pathsep + env.get("PYTHONPATH", "")
-    return env
-
-
-def one_run(spec: str, jobs: int, tmp: Path, tree: Path | None) -> dict:
+def one_run(spec: str, jobs: int, tmp: Path) -> dict:
     out = tmp / f"scaling_{jobs}.parquet"
     t0 = time.perf_counter()
     r = subprocess.run([sys.executable, "-c", WORKER, str(ROOT / spec), str(out), str(jobs)], capture_output=True,
-                       text=True, cwd=tmp, env=_env(tree))
+                       text=True, cwd=tmp)
     command = time.perf_counter() - t0
     if r.returncode != 0:
         raise SystemExit(f"jobs {jobs}: the run failed:\n{r.stderr[-2000:]}")
     rec = json.loads(r.stdout.strip().splitlines()[-1])
-    if tree is not None and not rec["package"].startswith(str(tree)):
-        raise SystemExit(f"the run of {tree} imported the package at {rec['package']}")
     rec["command"] = command
     rec["outside"] = rec["seconds"] - rec["timings"]["compute"]
     rec["cycles_per_s"] = rec["scenes"] / rec["seconds"]
     return rec
 
 
-def _rows(label: str, results: dict) -> list:
+def _rows(results: dict) -> list:
     def med(recs, f):
         return statistics.median(f(r) for r in recs)
 
@@ -94,7 +82,7 @@ def _rows(label: str, results: dict) -> list:
     for jobs, recs in results.items():
         cps = med(recs, lambda r: r["cycles_per_s"])
         cells = [f"{med(recs, lambda r, p=p: r['timings'].get(p, 0.0)):.2f}" for p in PHASES]
-        lines.append(f"| {label} | {jobs} | {med(recs, lambda r: r['command']):.2f} | "
+        lines.append(f"| {jobs} | {med(recs, lambda r: r['command']):.2f} | "
                      f"{one / med(recs, lambda r: r['command']):.2f} | {med(recs, lambda r: r['seconds']):.2f} | "
                      f"{med(recs, lambda r: r['timings']['compute']):.2f} | {med(recs, lambda r: r['outside']):.2f} | "
                      f"{cps:,.0f} | {cps / base_cps:.2f} | " + " | ".join(cells)
@@ -102,22 +90,19 @@ def _rows(label: str, results: dict) -> list:
     return lines
 
 
-def page(spec: str, trees: dict, jobs: list, rounds: int, before: str | None) -> str:
-    scenes = next(iter(next(iter(trees.values())).values()))[0]["scenes"]
-    again = f" --before {before}" if before else ""
+def page(spec: str, results: dict, jobs: list, rounds: int) -> str:
+    scenes = next(iter(results.values()))[0]["scenes"]
     lines = [f"# More cores, more cycles: {Path(spec).name} at {', '.join(map(str, jobs))} jobs", "",
              f"Regenerate: `python benchmarks/scaling.py --spec {spec} --jobs {' '.join(map(str, jobs))} "
-             f"--rounds {rounds}{again}` (what is measured: its docstring). This machine: {os.cpu_count()} cores. "
-             f"{scenes:,} cycles a run; medians over {rounds} round{'s' if rounds > 1 else ''}, the trees "
-             f"interleaved; seconds of the sweep's own record, and the command's wall time.", "",
-             "| tree | jobs | command s | command vs 1 job | sweep s | compute | outside compute | cycles / s | "
+             f"--rounds {rounds}` (what is measured: its docstring). This machine: {os.cpu_count()} cores. "
+             f"{scenes:,} cycles a run; medians over {rounds} round{'s' if rounds > 1 else ''}; seconds of the "
+             "sweep's own record, and the command's wall time.", "",
+             "| jobs | command s | command vs 1 job | sweep s | compute | outside compute | cycles / s | "
              "vs 2 jobs | " + " | ".join(PHASES) + " | peak MiB (this process) |",
-             "|---|---:|---:|---:|---:|---:|---:|---:|---:|" + "---:|" * len(PHASES) + "---:|"]
-    for label, results in trees.items():
-        lines += _rows(label, results)
-    lines += ["", "Every run, in order of the tree: " + "; ".join(
-        f"{label} {j} jobs {r['command']:.2f} s ({r['outside']:.2f} s outside compute)"
-        for label, results in trees.items() for j, recs in results.items() for r in recs)]
+             "|---:|---:|---:|---:|---:|---:|---:|---:|" + "---:|" * len(PHASES) + "---:|"]
+    lines += _rows(results)
+    lines += ["", "Every run: " + "; ".join(f"{j} jobs {r['command']:.2f} s ({r['outside']:.2f} s outside compute)"
+                                            for j, recs in results.items() for r in recs)]
     return "\n".join(lines) + "\n"
 
 
@@ -126,26 +111,21 @@ def main(argv=None) -> int:
     ap.add_argument("--spec", default="sweeps/envelope.yaml")
     ap.add_argument("--jobs", type=int, nargs="+", default=None)
     ap.add_argument("--rounds", type=int, default=1)
-    ap.add_argument("--before", default=None, help="an earlier revision to run beside this tree")
     ap.add_argument("--out", type=Path, default=OUT)
     args = ap.parse_args(argv)
     jobs = args.jobs or default_jobs()
-    trees = {"this tree": None}
-    if args.before:
-        trees = {args.before: export(args.before), "this tree": None}
-    results = {label: {j: [] for j in jobs} for label in trees}
+    results = {j: [] for j in jobs}
     with tempfile.TemporaryDirectory(prefix="fencesweep-scaling-") as tmp:
-        for tree in trees.values():  # the Numba caches warmed: every timed run loads, none compiles
-            subprocess.run([sys.executable, "-c", WARM], check=True, cwd=tmp, capture_output=True, env=_env(tree))
+        # the Numba cache warmed: every timed run loads, none compiles
+        subprocess.run([sys.executable, "-c", WARM], check=True, cwd=tmp, capture_output=True)
         for rnd in range(args.rounds):
             for j in jobs:
-                for label, tree in trees.items():
-                    rec = one_run(args.spec, j, Path(tmp), tree)
-                    results[label][j].append(rec)
-                    print(f"round {rnd + 1}, {label}, {j} jobs: command {rec['command']:.2f} s, sweep "
-                          f"{rec['seconds']:.2f} s, {rec['outside']:.2f} s outside compute, "
-                          f"{rec['cycles_per_s']:,.0f} cycles/s", flush=True)
-    text = page(args.spec, results, jobs, args.rounds, args.before)
+                rec = one_run(args.spec, j, Path(tmp))
+                results[j].append(rec)
+                print(f"round {rnd + 1}, {j} jobs: command {rec['command']:.2f} s, sweep "
+                      f"{rec['seconds']:.2f} s, {rec['outside']:.2f} s outside compute, "
+                      f"{rec['cycles_per_s']:,.0f} cycles/s", flush=True)
+    text = page(args.spec, results, jobs, args.rounds)
     args.out.write_text(text)
     print(text)
     return 0

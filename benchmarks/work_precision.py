@@ -1,4 +1,4 @@
-"""Speed against error: the engine, its RK4 baseline, compiled LSODA and SciPy's solve_ivp.
+"""Speed against error: the engine, its RK4 baseline and SciPy's solve_ivp.
 
 Every scene of tests/reference/results.csv (tests/reference/scenes.yaml run by
 tests/reference/model.py: the same model written independently, SciPy DOP853 at rtol 1e-10
@@ -8,10 +8,6 @@ with event restarts) is run with its *fully resolved* docs/model.md §12 paramet
   fencesweep DOPRI5   : the engine's default integrator at step_factor 4 ... 0.1
                         (tolerance 1e-6 x step_factor^5)
   fencesweep RK4      : the engine's fixed-step baseline, integrator = rk4 at several dt
-  numbalsoda LSODA    : the compiled peer of benchmarks/lsoda_peer.py (one numba.cfunc
-                        right-hand side of the reference model, LSODA at several rtol, peak
-                        refined between the output samples); skipped, with the reason
-                        printed, when numbalsoda is not installed
   solve_ivp           : tests/reference/model.py itself (plain-Python right-hand side) with
                         RK45, DOP853 and LSODA at several rtol
 
@@ -22,11 +18,12 @@ scene's free-fall force), angles against max(|ref|, 0.01 rad), times against max
 seen or not). Time: CPU time per cycle, warm (JIT and caches excluded), the median of
 --repeat calls per scene (solve_ivp: one call per scene, in --jobs processes).
 
-    python benchmarks/work_precision.py [--repeat 3] [--jobs 2] [--no-ivp] [--no-peer] [--from-csv]
+    python benchmarks/work_precision.py [--repeat 3] [--jobs 2] [--no-ivp] [--from-csv]
 
 writes results/work_precision.csv (one row per solver, setting and scene),
 results/work_precision.md and results/figures/work_precision.png. Time it alone on the
-machine.
+machine. Compiled LSODA (numbalsoda), a row of the page before its peer retired
+(results/lsoda_peer.md), stays only where --from-csv reads a CSV that has it.
 """
 from __future__ import annotations
 
@@ -50,13 +47,11 @@ from fencesweep.kernel import numerics  # noqa: E402
 
 ENGINE_FACTORS = (4.0, 2.0, 1.0, 0.5, 0.25, 0.1)
 RK4_DTS = (1e-4, 3e-5, 1e-5)          # [s]; 1e-5 is the rk4 default
-PEER_RTOLS = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9)
 IVP_CONFIGS = [("RK45", 1e-4), ("RK45", 1e-6), ("RK45", 1e-8),
                ("DOP853", 1e-4), ("DOP853", 1e-6), ("DOP853", 1e-8),
                ("LSODA", 1e-4), ("LSODA", 1e-6), ("LSODA", 1e-8)]
 ENGINE = "fencesweep DOPRI5"
 RK4 = "fencesweep RK4 (baseline)"
-PEER = "numbalsoda LSODA (cfunc)"
 QUANTITIES = ("peak_force", "deflection_max", "t_exit")
 
 
@@ -98,24 +93,6 @@ def run_engine(refs: list[dict], repeat: int) -> pd.DataFrame:
                          "steps": r["n_steps"], "rhs": np.nan, "outcome": r["outcome"], **judge(r, ref)})
         print(f"{solver} {setting} done", flush=True)
     return pd.DataFrame(rows)
-
-
-def run_peer(repeat: int) -> pd.DataFrame | None:
-    """The compiled LSODA peer (benchmarks/lsoda_peer.py) at PEER_RTOLS, or None (reason printed)."""
-    try:
-        import lsoda_peer
-    except ImportError as exc:   # numbalsoda missing: pip install -e ".[bench]" (needs gfortran)
-        print(f"skipping the {PEER} rows: {exc} (install the bench extra: pip install -e \".[bench]\"; "
-              "numbalsoda builds from source and needs a Fortran compiler)", flush=True)
-        return None
-    out = []
-    for rtol in PEER_RTOLS:
-        df = lsoda_peer.peer_errors(rtol, refine=True, repeat=repeat, judge=judge)
-        df = df.rename(columns={"steps": "rhs", "n_steps": "steps"})
-        df["solver"], df["setting"], df["knob"] = PEER, f"rtol={rtol:g}", rtol
-        out.append(df)
-        print(f"{PEER} rtol={rtol:g} done", flush=True)
-    return pd.concat(out, ignore_index=True)
 
 
 def _ivp_one(params: dict, method: str, rtol: float) -> dict:
@@ -171,11 +148,10 @@ def md_table(df: pd.DataFrame) -> str:
     return "\n".join(rows)
 
 
-STYLE = {ENGINE: ("C0", "o", "-"), RK4: ("C7", "s", "--"), PEER: ("C3", "D", "-"),
+STYLE = {ENGINE: ("C0", "o", "-"), RK4: ("C7", "s", "--"), "numbalsoda LSODA (cfunc)": ("C3", "D", "-"),
          "solve_ivp RK45": ("C2", "^", ":"), "solve_ivp DOP853": ("C4", "v", ":"),
          "solve_ivp LSODA": ("C1", "<", ":")}
 FLOOR = 1e-13   # plotted in place of an error of 0
-SLOW = 100      # a peer's scene that takes over SLOW x its median time is listed by name
 
 
 def plot(summary: pd.DataFrame, df: pd.DataFrame, path: Path) -> None:
@@ -218,12 +194,6 @@ def _legend_label(solver: str, g: pd.DataFrame) -> str:
     name = g.setting.iloc[0].split("=")[0].replace("dt", "dt [s]")
     ends = f"{g.knob.iloc[0]:g}" + (f" … {g.knob.iloc[-1]:g}" if len(g) > 1 else "")
     return f"{solver}, {name} {ends}"
-
-
-def peer_dt_eval() -> float:
-    import lsoda_peer
-
-    return lsoda_peer.DT_EVAL
 
 
 def _row(summary: pd.DataFrame, solver: str, setting: str):
@@ -278,45 +248,6 @@ def _engine_prose(summary: pd.DataFrame, df: pd.DataFrame, d, ref_rtol: float) -
     return txt
 
 
-def _peer_prose(summary: pd.DataFrame, df: pd.DataFrame, d) -> list[str]:
-    """Compiled LSODA: its cost and errors at rtol 1e-6, its worst scenes, its slow scenes."""
-    peer = summary[summary.solver == PEER]
-    if not len(peer):
-        return []
-    p6 = _row(summary, PEER, "rtol=1e-06")
-    pdf = df[df.solver == PEER]
-    lines = ["**Compiled LSODA** (benchmarks/lsoda_peer.py: the reference model as one numba.cfunc, LSODA from "
-             f"numbalsoda on a {peer_dt_eval() * 1e3:g} ms output grid, each sampled force maximum re-integrated "
-             "on finer grids; results read off the samples, no event location). "]
-    if p6 is not None and d is not None:
-        miss = pdf[(pdf.setting == "rtol=1e-06") & ~pdf.touch_ok]
-        lines.append(
-            f"At rtol 1e-6: {p6['median ms per cycle']:.3g} ms per cycle (median; mean "
-            f"{p6['mean ms per cycle']:.3g} ms), {p6['median ms per cycle'] / d['median ms per cycle']:.2g}x the "
-            f"engine's default; median errors {p6['median e(peak_force)']:.2g} (peak_force), "
-            f"{p6['median e(deflection_max)']:.2g} (deflection_max), {p6['median e(t_exit)']:.2g} (t_exit); "
-            f"outcome agreement {p6['outcome agreement']:.3g}, touch agreement {p6['touch agreement']:.3g}"
-            + (f" (touches wrong: {', '.join(miss.id)})" if len(miss) else "") + ". ")
-    worst = pdf.loc[pdf.groupby("setting", sort=False).e_max.idxmax()]
-    lines.append("Its worst scene: " + "; ".join(
-        f"{i} at rtol {', '.join(f'{k:g}' for k in h.knob)} (error {', '.join(f'{e:.2g}' for e in h.e_max)})"
-        for i, h in worst.groupby("id", sort=False)) + ". ")
-    slow = pdf[pdf.time > SLOW * pdf.time.median()]
-    if len(slow):
-        lines.append(f"Scenes over {SLOW:g}x its median time, which make its mean (LSODA crawling on a load resting on a "
-                     "free fence, see results/lsoda_peer.md): " + "; ".join(
-                         f"{i}: " + ", ".join(f"{t * 1e3:.0f} ms at rtol {k:g}" for k, t in zip(h.knob, h.time))
-                         for i, h in slow.groupby("id", sort=False)) + ".")
-    txt = ["".join(lines)]
-    ok = peer[peer["median e(peak_force)"] <= d["median e(peak_force)"]] if d is not None else peer[:0]
-    if len(ok):
-        b = ok.iloc[0]
-        txt.append(f"The loosest LSODA rtol whose median peak_force error is at or below the engine default's: "
-                   f"{b.knob:g}, {b['median ms per cycle']:.3g} ms per cycle against the engine's "
-                   f"{d['median ms per cycle']:.3g} ms ({b['median ms per cycle'] / d['median ms per cycle']:.2g}x).")
-    return txt
-
-
 def _ivp_prose(summary: pd.DataFrame, d) -> list[str]:
     ivp = summary[summary.solver.str.startswith("solve_ivp")]
     if not len(ivp) or d is None:
@@ -337,15 +268,14 @@ def _ivp_prose(summary: pd.DataFrame, d) -> list[str]:
 def prose(summary: pd.DataFrame, df: pd.DataFrame, ref_rtol: float) -> list[str]:
     """The text under the table: every number from `summary` / `df`."""
     d = _row(summary, ENGINE, "step_factor=1")
-    return _engine_prose(summary, df, d, ref_rtol) + _peer_prose(summary, df, d) + _ivp_prose(summary, d)
+    return _engine_prose(summary, df, d, ref_rtol) + _ivp_prose(summary, d)
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--repeat", type=int, default=3, help="timed calls per scene (median) for the engine and LSODA")
+    ap.add_argument("--repeat", type=int, default=3, help="timed calls per scene (median) for the engine")
     ap.add_argument("--jobs", type=int, default=2, help="parallel solve_ivp processes")
     ap.add_argument("--no-ivp", action="store_true", help="skip solve_ivp (minutes)")
-    ap.add_argument("--no-peer", action="store_true", help="skip compiled LSODA")
     ap.add_argument("--from-csv", action="store_true",
                     help="measure nothing: rewrite the .md and the figure from results/work_precision.csv "
                          "(made with the same --repeat)")
@@ -363,8 +293,6 @@ def main() -> None:
 def measure(args) -> pd.DataFrame:
     refs = reference.rows()
     parts = [run_engine(refs, args.repeat)]
-    if not args.no_peer:
-        parts.append(run_peer(args.repeat))
     if not args.no_ivp:
         parts.append(run_ivp(refs, args.jobs))
     return pd.concat([p for p in parts if p is not None], ignore_index=True)
@@ -375,7 +303,7 @@ def write_pages(df: pd.DataFrame, args, out: Path) -> None:
     summary = summarise(df)
     ref_rtol, ref_method = float(ref_df.ref_rtol.max()), str(ref_df.ref_method.iloc[0])
     n = len(ref_df)
-    text = ["# Work-precision: the engine, its RK4 baseline, compiled LSODA and solve_ivp", "",
+    text = ["# Work-precision: the engine, its RK4 baseline and solve_ivp", "",
             "Regenerate: `python benchmarks/work_precision.py`, alone on the machine (also run by "
             "`bash results/regenerate.sh`). Figure: `results/figures/work_precision.png`; every scene's "
             "row: `results/work_precision.csv`.", "",
@@ -392,7 +320,7 @@ def write_pages(df: pd.DataFrame, args, out: Path) -> None:
             f"{args.repeat} calls per scene after a warm-up call (solve_ivp: one call per scene); the table "
             "gives the median and the mean over the scenes, the figure the median. Settings: the engine's "
             f"step_factor (tolerance {numerics.TOL:g} x step_factor^{numerics.TOL_EXPONENT:g}), the RK4 "
-            "baseline's fixed step dt [s], the rtol of LSODA and of solve_ivp.", "",
+            "baseline's fixed step dt [s], the rtol of solve_ivp.", "",
             md_table(summary.drop(columns="knob")), "", *[p + "\n" for p in prose(summary, df, ref_rtol)]]
     import verification  # benchmarks/: the section on a table's own check, and its figure
 

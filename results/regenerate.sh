@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Regenerate everything in results/ from scratch: the sweep tables, the single-cycle
 # trajectories, the figures, REPORT.md and the benchmark pages that time the kernel
-# (work_precision, throughput). Run from anywhere:
+# (work_precision, scaling_main, stream_cost). Run from anywhere:
 #
 #     bash results/regenerate.sh [--jobs N] [--no-benchmarks]
 #
@@ -61,17 +61,12 @@ fencesweep plot-design --results results   # envelope map, loads, window, risk m
 fencesweep plot report --results results
 
 # 5. the benchmark pages that time the current kernel: work-precision against the reference (with
-#    compiled LSODA and solve_ivp), throughput of the main job with the cost per phase of a cycle,
-#    the compiled LSODA peer on the named cases
+#    solve_ivp), the main job's command on 1 and 2 jobs with its phases, a stream's cost per cycle
+#    (an earlier revision against this one: asv, benchmarks/README.md)
 if [[ "$BENCHMARKS" == 1 ]]; then
   python benchmarks/work_precision.py
-  python benchmarks/throughput.py
+  python benchmarks/scaling.py --spec sweeps/b2k2.yaml --jobs 1 2 --rounds 3 --out results/scaling_main.md
   python benchmarks/stream_cost.py   # a stream's cost per cycle against a cycle -> results/stream_cost.md
-  if python -c "import numbalsoda" 2>/dev/null; then
-    python benchmarks/lsoda_peer.py   # the named cases beside compiled LSODA -> results/lsoda_peer.md
-  else
-    echo "skipping benchmarks/lsoda_peer.py: numbalsoda is not installed (pip install -e \".[bench]\", needs gfortran)"
-  fi
 fi
 
 echo "results/ regenerated in $(( $(date +%s) - FENCESWEEP_REGEN_START )) s"
