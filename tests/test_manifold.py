@@ -57,7 +57,7 @@ def fence_force(D, x, theta, L=L, A=A):
 
 
 @plain_python
-def test_the_issue_overlap_pushes_once():
+def test_a_corner_near_the_tip_and_the_tip_push_once_for_one_overlap():
     # a corner 2 mm deep, 0.3 mm short of the tip, theta 0.3: the two slots gave 357.8 + 357.6 N
     n, pushing = fence_force(2e-3, 0.3e-3, 0.3)
     m = min(2e-3, 0.3e-3 * math.cos(0.3) + 2e-3 * math.sin(0.3))
