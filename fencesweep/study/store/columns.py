@@ -28,15 +28,44 @@ def arrow_array(values, typ: pa.DataType) -> pa.Array:
         if arr.dtype.kind in ("iu" if typ == pa.int64() else "fiu"):
             data = pa.py_buffer(np.ascontiguousarray(arr, _NUMPY_OF[typ]))
             return pa.Array.from_buffers(typ, n, [valid, data], null_count=-1 if valid else 0)
-    elif typ == pa.string() and all(isinstance(v, str) or v is None for v in values):
-        data = [b"" if v is None else v.encode() for v in values]
-        offsets = np.zeros(n + 1, np.int32)
-        np.cumsum([len(b) for b in data], out=offsets[1:])
-        missing = np.array([v is None for v in values], dtype=bool)
-        valid = pa.py_buffer(np.packbits(~missing, bitorder="little")) if missing.any() else None
-        return pa.Array.from_buffers(typ, n, [valid, pa.py_buffer(offsets), pa.py_buffer(b"".join(data))],
-                                     null_count=-1 if valid else 0)
+    elif typ == pa.string():
+        made = _few_strings(values, n) if n > _FEW else None
+        if made is not None:
+            return made
+        if all(isinstance(v, str) or v is None for v in values):
+            return _strings(values, n)
     return pa.array(values, type=typ)
+
+
+#: string columns longer than this are made from their distinct values (_few_strings)
+_FEW = 32
+
+
+def _strings(values, n: int) -> pa.Array:
+    """Strings (or None, a null) as an Arrow string array, from its buffers."""
+    data = [b"" if v is None else v.encode() for v in values]
+    offsets = np.zeros(n + 1, np.int32)
+    np.cumsum([len(b) for b in data], out=offsets[1:])
+    missing = np.array([v is None for v in values], dtype=bool)
+    valid = pa.py_buffer(np.packbits(~missing, bitorder="little")) if missing.any() else None
+    return pa.Array.from_buffers(pa.string(), n, [valid, pa.py_buffer(offsets), pa.py_buffer(b"".join(data))],
+                                 null_count=-1 if valid else 0)
+
+
+def _few_strings(values, n: int) -> pa.Array | None:
+    """A long column of a few distinct strings (a sweep's outcome, status, case): its distinct
+    values made once (_strings) and taken by each entry's number among them, the loops over the
+    entries in C (set, map); the same array as _strings gives. None where the values are not
+    all strings or None, or not hashable, or mostly distinct (the caller makes them one by one)."""
+    try:
+        distinct = list(set(values))
+    except TypeError:  # unhashable values: not strings
+        return None
+    if len(distinct) > n // 4 or not all(isinstance(v, str) or v is None for v in distinct):
+        return None
+    number = {v: k for k, v in enumerate(distinct)}
+    which = np.fromiter(map(number.__getitem__, values), np.int32, n)
+    return _strings(distinct, len(distinct)).take(pa.Array.from_buffers(pa.int32(), n, [None, pa.py_buffer(which)]))
 
 
 def _with_nulls(values) -> tuple:

@@ -243,16 +243,16 @@ def columns_table(scene: str, cols: dict, model_ids: Iterable[int]) -> pa.Table:
     if set(cols) != set(schema.names):
         raise ValueError(f"result columns of scene {scene!r}: missing {sorted(set(schema.names) - set(cols))} / "
                          f"extra {sorted(set(cols) - set(schema.names))}")
-    arrays = [arrow_array(cols[n].tolist() if getattr(cols[n], "dtype", None) == object else cols[n],
-                          schema.field(n).type) for n in schema.names]
+    arrays = [arrow_array(cols[n], schema.field(n).type) for n in schema.names]
     table = pa.Table.from_arrays(arrays, schema=schema)
     return table.append_column("_model", arrow_array(list(model_ids), pa.int64()))
 
 
-def write_chunk_columns(path: str | Path, scene: str, model_ids: list, cols: dict, meta: dict) -> None:
-    """write_chunk of result columns (columns_table)."""
+def write_chunk_columns(path: str | Path, scene: str, model_ids: list, cols: dict, meta: dict) -> pa.Table:
+    """write_chunk of result columns (columns_table); returns the table written."""
     table = columns_table(scene, cols, model_ids).replace_schema_metadata(_meta_bytes(meta))
-    write_table_atomic(table, path, fsync=False)
+    _write_chunk_table(table, path)
+    return table
 
 
 # ---------------------------------------------------------------------------- atomic files
@@ -289,11 +289,29 @@ def write_table_atomic(table: pa.Table, path: str | Path, fsync: bool = True, at
 
 
 # ---------------------------------------------------------------------------- chunks
+#: a chunk (write_chunk) is written once and read back once (sweep/chunks.py): Parquet, compressed
+#: with LZ4, without dictionaries or statistics, and without the pandas stamp (stamp: no one reads
+#: a chunk with pandas). On a chunk of the main job (821 runs), against the tables' zstd: written
+#: in 0.9-1.1 ms instead of 3.2, read in 0.47-0.6 ms instead of 1.5-1.9, 134 kB instead of 141
+#: (Arrow IPC with LZ4: 0.4 and 0.2 ms, 142 kB)
+CHUNK_OPTIONS = {"compression": "lz4", "use_dictionary": False, "write_statistics": False}
+
+
 def write_chunk(path: str | Path, scene: str, model_ids: list, rows: list, meta: dict) -> None:
     """One finished chunk: the results of its model runs, with their model numbers."""
     table = results_table(scene, rows, model_ids)
-    table = table.replace_schema_metadata(_meta_bytes(meta))
-    write_table_atomic(table, path, fsync=False)
+    _write_chunk_table(table.replace_schema_metadata(_meta_bytes(meta)), path)
+
+
+def _write_chunk_table(table: pa.Table, path: str | Path) -> None:
+    """A chunk's table into `path`, atomically (not fsync'd: chunk_complete checks it when reused)."""
+    with atomic_path(path, fsync=False) as tmp:
+        pq.write_table(table, tmp, **CHUNK_OPTIONS)
+
+
+def read_chunk(path: str | Path, columns: list | None = None) -> pa.Table:
+    """A chunk's table (its `columns`, or all), in this thread (a small file: threads cost more)."""
+    return pq.ParquetFile(path).read(columns=columns, use_threads=False)
 
 
 def chunk_complete(path: str | Path, n_rows: int) -> bool:

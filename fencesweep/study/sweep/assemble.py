@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Callable
 
 import numpy as np
+import pyarrow as pa
 import pyarrow.compute as pc
 
 from fencesweep.study.store import table as store
@@ -62,6 +63,7 @@ class Assembly:
     def __init__(self, plan: PL.Plan, work: Path, out: Path, tables: ChunkTables):
         self.plan, self.work, self.out, self.tables = plan, Path(work), Path(out), tables
         self.fields = store.table_schema(plan.spec.scene)
+        self.result_schema = store.result_schema(plan.spec.scene)  # the chunks' columns, `_model` aside
         self.starts = list(range(0, plan.n_scenes, PL.ASSEMBLY_BLOCK))
         self._arrived: set = set()
         self._next = 0  # the next block to write
@@ -115,11 +117,13 @@ class Assembly:
             self._writer = store.TableWriter(self.out, store.table_schema(self.plan.spec.scene, table_meta(self.plan)))
         return self._writer
 
-    def _chunk(self, c: int) -> dict:
+    def _chunk(self, c: int) -> tuple:
+        """Chunk `c`'s table (as the sweep read it) and its runs' numbers (`_model`, as NumPy)."""
         if c in self._cache:
             self._cache.move_to_end(c)
             return self._cache[c]
-        data = self._cache[c] = store.chunk_arrays(self.tables.read(c))
+        table = self.tables.read(c)
+        data = self._cache[c] = (table, store.numpy_column(table.column("_model")))
         if len(self._cache) > CHUNK_CACHE:
             self._cache.popitem(last=False)
         return data
@@ -132,26 +136,56 @@ class Assembly:
             return
         cols = plan.columns().columns(rows)
         n_params = len(cols)
-        cols.update(self._results(plan.row_model[rows]))
+        results = self._results(plan.row_model[rows])
+        if plan.spec.scene == "stream":  # its lists laid out per cycle from NumPy (store.explode_streams)
+            results = {f.name: _numpy(results[f.name], f.type) for f in store.result_schema("stream")}
+        cols.update(results)
         cols = _table_rows(plan.spec.scene, cols, n_params)
         arrays = {f.name: store.arrow_array(cols[f.name], f.type) for f in self.fields}
         self.failed += int(pc.sum(pc.starts_with(arrays["status"], "failed: exception")).as_py() or 0)
         self._open().write(arrays)
 
     def _results(self, models: np.ndarray) -> dict:
-        """The result columns of the runs `models`, from their chunks."""
+        """The result columns of the runs `models`, taken from their chunks' tables as Arrow
+        arrays (no conversion: the chunks hold the table's types)."""
         size = self.plan.chunk_size
-        np_type = {"double": np.float64, "int64": np.int64, "bool": np.bool_}
-        rcols = [(f.name, f.type) for f in store.result_schema(self.plan.spec.scene)]
-        cols = {name: np.empty(len(models), dtype=np_type.get(str(typ), object)) for name, typ in rcols}
         which = models // size
-        for c in np.unique(which):
+        parts, position, at = [], np.empty(len(models), np.int64), 0
+        for c in np.unique(which).tolist():
             sel = which == c
             local = models[sel] - c * size
-            data = self._chunk(int(c))
-            if not np.array_equal(data["_model"][local], models[sel]):
+            table, ids = self._chunk(c)
+            if not np.array_equal(ids[local], models[sel]):
                 raise RuntimeError(f"chunk {c} in {self.work} does not hold the runs it should; "
                                    f"rerun with --no-resume")
-            for name, _ in rcols:
-                cols[name][sel] = data[name][local]
-        return cols
+            position[sel] = at + local
+            parts.append(table)
+            at += table.num_rows
+        return _taken(parts, self.result_schema, position)
+
+
+def _taken(tables: list, schema: pa.Schema, position: np.ndarray) -> dict:
+    """The rows `position` of `tables` (chunks' tables, one after the other) as {column of
+    `schema`: one Arrow array}, taken in one call (a slice where they follow one another); where a
+    chunk's column has nulls or another type, every column goes through NumPy (_numpy), as each
+    did before the chunks were kept as Arrow (a null float becomes NaN)."""
+    parts = [t.select(schema.names) for t in tables]
+    whole = pa.concat_tables(parts) if all(t.schema.equals(schema) for t in parts) else None  # metadata aside
+    if whole is None or any(c.null_count for c in whole.columns):
+        return {f.name: store.arrow_array(np.concatenate([_numpy(t.column(f.name), f.type) for t in tables])[position],
+                                          f.type) for f in schema}
+    n = len(position)
+    if n and position[-1] - position[0] == n - 1 and bool(np.all(np.diff(position) == 1)):
+        taken = whole.slice(int(position[0]), n)  # the runs in their order: the scenes of the block shared none
+    else:
+        taken = whole.take(store.arrow_array(position, pa.int64()))
+    return {name: col.combine_chunks() for name, col in zip(taken.column_names, taken.columns)}
+
+
+def _numpy(col, typ: pa.DataType) -> np.ndarray:
+    """An Arrow column as a NumPy array of the dtype of `typ`'s values (objects for strings and
+    lists): a null float is NaN."""
+    np_type = {"double": np.float64, "int64": np.int64, "bool": np.bool_}
+    out = np.empty(len(col), dtype=np_type.get(str(typ), object))
+    out[:] = store.numpy_column(col)
+    return out

@@ -6,9 +6,10 @@ Per batch (consecutive pending chunks, at most `batch_size` runs):
      columns (prepare.prepare_columns), on the local workers (or in this process with one job),
      while the GPU runs the batch before;
   2. the batch is launched, asynchronously;
-  3. the batch before's chunks are written (on the workers: unpacked and written as the CPU's
-     chunks are), and each written chunk is handed on (`finished`, as compute.compute_chunks
-     does): the table's blocks and the verification's scores go on as with the CPU.
+  3. the batch's chunks are written (on the workers: unpacked and written as the CPU's chunks
+     are), and each written chunk is handed on (`finished`, as compute.compute_chunks does) with
+     its table (no file read back) once the next batch's results are back: the table's blocks and
+     the verification's scores go on as with the CPU, while the workers write the next chunks.
 A run whose parameters cannot be prepared is a failed row naming the exception, as on the CPU.
 Only the scene `cycle` runs here (check_scene); the verification re-runs on the CPU.
 """
@@ -26,7 +27,7 @@ import numpy as np
 from fencesweep.errors import UsageError
 from fencesweep.study.spec import spec as S
 from fencesweep.study.store import table as store
-from fencesweep.study.sweep import compute
+from fencesweep.study.sweep import chunks, compute
 from fencesweep.study.sweep import plan as PL
 from fencesweep.study.sweep.progress import bar as progress_bar
 
@@ -110,10 +111,11 @@ def _prepare(c: int, rows: np.ndarray, shared: tuple | None = None) -> tuple:
     return c, P, failed
 
 
-def _write(path: str, ids: list, out: np.ndarray, failed: dict, meta: dict, shared: tuple | None = None) -> float:
+def _write(path: str, ids: list, out: np.ndarray, failed: dict, meta: dict, shared: tuple | None = None) -> tuple:
     """Chunk `path`'s file from its runs' result rows, decoded as whole columns, the runs that
-    could not be prepared as failed rows; the seconds it took (`shared`: unused, as every call on
-    the workers takes it)."""
+    could not be prepared as failed rows. Returns the seconds it took and the chunk's table as
+    Arrow IPC bytes (chunks.ipc_bytes), which the sweep's process takes instead of reading the
+    file back (`shared`: unused, as every call on the workers takes it)."""
     from fencesweep.model.results import CYCLE_RESULTS, N_CYCLE_RESULTS, unpack_columns
 
     t = time.monotonic()
@@ -121,8 +123,8 @@ def _write(path: str, ids: list, out: np.ndarray, failed: dict, meta: dict, shar
     for k, reason in failed.items():
         for name, value in store.failed_result("cycle", reason).items():
             cols[name][k] = value
-    store.write_chunk_columns(path, "cycle", ids, cols, meta)
-    return time.monotonic() - t
+    table = store.write_chunk_columns(path, "cycle", ids, cols, meta)
+    return time.monotonic() - t, chunks.ipc_bytes(table)
 
 
 class _Now:
@@ -151,8 +153,11 @@ def _batches(plan: PL.Plan, pending: list, size: int) -> list:
 def compute_chunks(plan: PL.Plan, spec: S.Spec, work: Path, pending: list, done: list, runner, progress: bool,
                    meta_chunk: dict, pool=None, finished: Callable[[int], None] | None = None) -> dict:
     """Run the pending chunks on the GPU (module docstring) with `runner` (model/scenes/gpu.py
-    Cycles), the CPU side on `pool` (the local workers; None: this process). Returns the seconds of
-    the GPU's batches ("gpu": launch to results back) and of the chunk writes."""
+    Cycles), the CPU side on `pool` (the local workers; None: this process). A batch's chunks are
+    handed on (_drain) after the next batch's results are back and its writes submitted: this
+    process reads them and writes the table's blocks while the workers write and prepare the next
+    ones. Returns the seconds of the GPU's batches ("gpu": launch to results back) and of the
+    chunk writes."""
     shared = (spec, None)
     submit = (lambda fn, *a: pool.submit(fn, *a)) if pool is not None else (lambda fn, *a: _Now(fn(*a, shared)))
 
@@ -160,12 +165,24 @@ def compute_chunks(plan: PL.Plan, spec: S.Spec, work: Path, pending: list, done:
         return [submit(_prepare, c, plan.first_row[plan.chunk_models(c).start:plan.chunk_models(c).stop])
                 for c in batch]
 
+    def write(parts: list, out: np.ndarray) -> list:
+        written, at = [], 0
+        for c, P, failed in parts:
+            n = P.shape[0]
+            written.append((c, submit(_write, str(work / plan.chunk_name(c)), list(plan.chunk_models(c)),
+                                      out[at:at + n], failed, dict(meta_chunk, chunk=c))))
+            at += n
+        return written
+
     batches = _batches(plan, pending, batch_size(runner.free_memory()))
     timing = {"gpu": 0.0, "writes": 0.0, "batches": len(batches)}
     rows_of = plan.chunk_rows()
     with contextlib.closing(progress_bar(plan.n_scenes - plan.skipped, Path(spec.path).stem if spec.path else "sweep",
                                          progress, initial=int(rows_of[done].sum()) if done else 0)) as bar:
-        ready = prepare(batches[0]) if batches else []
+        def drain(written: list) -> None:  # the chunks written: counted, handed on
+            _drain(written, timing, lambda c: bar.update(int(rows_of[c])), finished, work, plan)
+
+        ready, written = (prepare(batches[0]) if batches else []), []
         for k in range(len(batches)):
             parts = [f.result() for f in ready]
             t = time.monotonic()
@@ -173,16 +190,22 @@ def compute_chunks(plan: PL.Plan, spec: S.Spec, work: Path, pending: list, done:
             ready = prepare(batches[k + 1]) if k + 1 < len(batches) else []  # while the GPU runs
             out = launched.result()
             timing["gpu"] += time.monotonic() - t
-            writes, at = [], 0
-            for c, P, failed in parts:
-                n = P.shape[0]
-                writes.append(submit(_write, str(work / plan.chunk_name(c)), list(plan.chunk_models(c)),
-                                     out[at:at + n], failed, dict(meta_chunk, chunk=c)))
-                at += n
-            for (c, _, _), w in zip(parts, writes):
-                timing["writes"] += w.result()
-                bar.update(int(rows_of[c]))
-                if finished is not None:
-                    finished(c)
+            written, before = write(parts, out), written
+            drain(before)  # the batch before's chunks, while the workers write this one's
+        drain(written)
     timing["pid"] = os.getpid()
     return timing
+
+
+def _drain(written: list, timing: dict, count: Callable[[int], None], finished: Callable[[int], None] | None,
+           work: Path, plan: PL.Plan) -> None:
+    """Wait for the chunk writes `written` ([(chunk, future)]), in order: their seconds go to
+    timing["writes"], each chunk is counted and handed on to `finished` with its table
+    (chunks.handed: the sweep's ChunkTables takes it instead of reading the file)."""
+    for c, future in written:
+        seconds, data = future.result()
+        timing["writes"] += seconds
+        count(c)
+        if finished is not None:
+            with chunks.handed(work / plan.chunk_name(c), data):
+                finished(c)
