@@ -1,17 +1,23 @@
-"""What does preparing a chunk's parameter vectors on whole columns (model/prepare.py
-prepare_columns) save against preparing them one run at a time (prepare), on the GPU path's CPU
-side and on the CPU's workers? (results/prepare.md)
+"""The sweep's CPU side outside the kernel, an earlier revision against this tree: the GPU path's
+(the card replaced by a stand-in), the main job's whole command, and a chunk's parameter vectors
+prepared on whole columns (model/prepare.py prepare_columns) or one run at a time (prepare).
+(results/prepare.md)
 
     python benchmarks/prepare.py [--before REV] [--rounds 3] [--spec sweeps/envelope.yaml] [--out FILE]
 
-An earlier revision (REV, one run at a time) beside this tree, in rounds that alternate them, each
-measurement a fresh process; the page gives each one's minimum over the rounds:
+An earlier revision (REV) beside this tree, in rounds that alternate them, each measurement a
+fresh process; the page gives each one's minimum over the rounds:
   stand-in   the GPU path with the card replaced (benchmarks/gpu.py --stand-in: its stand_in),
-             the whole `run_grid` command's wall seconds and its compute phase (the vectors, the
-             chunks written and read back, the table's blocks), on all cores, unverified;
+             the whole `run_grid` command's wall seconds and its phases: the plan, the compute
+             phase (the vectors, the chunks written and read back, the table's blocks), the chunk
+             writes on the workers (their seconds summed) and the stand-in card's answers; on all
+             cores, unverified;
+  main job   `fencesweep grid sweeps/b2k2.yaml --jobs N --out TMP --quiet`, the whole command's
+             wall seconds (the interpreter's start included), on 1 and 2 jobs;
   worker     what a CPU worker does to a chunk before its runs, per run: the chunk's scenes
-             resolved (compute._resolved) and each run's vector made (REV: prepare(vals); this
-             tree: compute.prepared, then vectors[k]), on every CHUNK_STEP-th chunk of CHUNK runs;
+             resolved (compute._resolved) and each run's vector made (a tree without
+             compute.prepared, c3a4204: prepare(vals); else compute.prepared, then vectors[k]),
+             on every CHUNK_STEP-th chunk of CHUNK runs;
   card       the GPU path's preparation of the same chunks (sweep/gpu.py _prepare), per run;
   one run    prepare(vals) alone (what `simulate` does for a single run), on the same runs.
 """
@@ -83,51 +89,78 @@ def _python(tree: Path, tmp: Path, code: str, *args) -> dict:
     return json.loads(r.stdout.strip().splitlines()[-1])
 
 
+#: the main job, its whole command (benchmarks/README.md)
+MAIN_JOB = ROOT / "sweeps" / "b2k2.yaml"
+
+
+def _command(tree: Path, tmp: Path, jobs: int) -> float:
+    """The wall seconds of `fencesweep grid MAIN_JOB --jobs N --quiet` in a fresh process of `tree`."""
+    t = time.perf_counter()
+    subprocess.run([sys.executable, "-m", "fencesweep", "grid", str(MAIN_JOB), "--jobs", str(jobs), "--out",
+                    str(tmp / "main.parquet"), "--quiet"], check=True, capture_output=True, cwd=tmp,
+                   env={**os.environ, "PYTHONPATH": str(tree)})
+    return time.perf_counter() - t
+
+
 def measure(tree: Path, spec: Path, tmp: Path) -> dict:
-    """One round of one tree: the stand-in sweep, then the worker's preparation."""
+    """One round of one tree: the stand-in sweep, the main job on 1 and 2 jobs, the worker's
+    preparation."""
     s = _python(tree, tmp, bench.SWEEP, spec, tmp / "s.parquet", "cuda", os.cpu_count() or 1, 0, ROOT / "benchmarks")
-    return {"command": s["wall"], "compute": s["timings"]["compute"], "writes": s["timings"]["writes"],
-            "card": s["timings"]["gpu"], "runs": s["runs"], **_python(tree, tmp, WORKER, spec, CHUNK, CHUNK_STEP)}
+    return {"command": s["wall"], "plan": s["timings"]["plan"], "compute": s["timings"]["compute"],
+            "writes": s["timings"]["writes"], "card": s["timings"]["gpu"], "runs": s["runs"],
+            "main_1": _command(tree, tmp, 1), "main_2": _command(tree, tmp, 2),
+            **_python(tree, tmp, WORKER, spec, CHUNK, CHUNK_STEP)}
 
 
-def page(rows: dict, args, names: dict) -> str:
-    keys = ("command", "compute", "writes", "card", "card_us", "worker_us", "alone_us")
-    best = {t: {k: min(r[k] for r in rs) for k in keys} for t, rs in rows.items()}
-    runs = next(iter(rows.values()))[0]
-    out = ["# Parameter vectors on whole columns (`benchmarks/prepare.py`)", "",
-           f"Machine: {os.cpu_count()} cores, shared with other work while measured. {time.strftime('%Y-%m-%d')}. "
-           f"`python benchmarks/prepare.py --before {args.before} --rounds {args.rounds} --spec {args.spec}`: "
-           f"{names['before']} (one run at a time) against this tree (prepare_columns), alternating, each "
-           f"a fresh process, the minimum of {args.rounds} rounds.", "",
+KEYS = ("command", "plan", "compute", "writes", "card", "main_1", "main_2", "card_us", "worker_us", "alone_us")
+#: the line from which the page's earlier measurements are kept when it is written again
+EARLIER = "## Earlier measurements"
+
+
+def page(rows: dict, args, names: dict, earlier: str = "") -> str:
+    """The page: the minima of each tree's rounds (the tables), every round, and `earlier`."""
+    best = {t: {k: min(r[k] for r in rs) for k in KEYS} for t, rs in rows.items()}
+    runs, cores = next(iter(rows.values()))[0], os.cpu_count() or 1
+
+    def row(t: str, keys: tuple) -> str:
+        return f"| {names[t]} | " + " | ".join(f"{best[t][k]:.2f}" for k in keys) + " |"
+
+    out = ["# The sweep's CPU side outside the kernel (`benchmarks/prepare.py`)", "",
+           f"Machine: {cores} cores, shared with other work while measured: the minima are what to compare, "
+           f"single rounds vary by a factor of 2. {time.strftime('%Y-%m-%d')}. `python benchmarks/prepare.py "
+           f"--before {args.before} --rounds {args.rounds} --spec {args.spec}`: {names['before']} against this "
+           f"tree, alternating, each a fresh process, the minimum of {args.rounds} rounds.", "",
            f"The stand-in: the GPU path of {args.spec} ({runs['runs']:,} runs) with the card replaced "
-           "(benchmarks/gpu.py --stand-in), on all cores; `compute` is its compute phase: the vectors (on "
-           "the workers), the chunks written (on the workers, `writes`: their seconds summed), the stand-in "
-           "card's answers (`card`: launch to results, in the sweep's process) and, in the sweep's process, "
-           "each chunk read back and the table's blocks written. Per run, on "
-           f"{runs['worker_runs']:,} runs "
-           f"(every {CHUNK_STEP}th chunk of {CHUNK}): the GPU path's preparation of a chunk (sweep/gpu.py "
-           "_prepare); what a CPU worker does to a chunk before running it (its scenes resolved, each "
-           "run's vector); prepare(vals) alone, as `simulate` does for one run.", "",
-           "| tree | stand-in: command s | compute s | writes s | card s | GPU chunk: µs a run "
-           "| CPU worker: µs a run | one run: prepare µs |", "|---|---:|---:|---:|---:|---:|---:|---:|"]
+           "(benchmarks/gpu.py --stand-in), on all cores, unverified: the whole command (`run_grid`, imports "
+           "and the spec read included), its plan, its compute phase (the vectors, on the workers; the chunks "
+           "written, on the workers; the stand-in card's answers; in the sweep's process each chunk taken in "
+           "and the table's blocks written), the chunk writes (`writes`: the workers' seconds summed) and the "
+           "card (`card`: launch to results, in the sweep's process). The main job: `fencesweep grid "
+           "sweeps/b2k2.yaml --jobs N --out TMP --quiet`, the whole command (13,122 runs, verified).", "",
+           "| tree | stand-in: command s | plan s | compute s | writes s | card s | main job, 1 job: s "
+           "| main job, 2 jobs: s |", "|---|---:|---:|---:|---:|---:|---:|---:|"]
+    out += [row(t, KEYS[:7]) for t in ("before", "this")]
+    out += ["", f"Per run, on {runs['worker_runs']:,} runs (every {CHUNK_STEP}th chunk of {CHUNK}): the GPU path's "
+            "preparation of a chunk (sweep/gpu.py _prepare); what a CPU worker does to a chunk before running it "
+            "(its scenes resolved, each run's vector); prepare(vals) alone, as `simulate` does for one run.", "",
+            "| tree | GPU chunk: µs a run | CPU worker: µs a run | one run: prepare µs |", "|---|---:|---:|---:|"]
+    out += [row(t, KEYS[7:]) for t in ("before", "this")] + [""]
+    out += ["Every round (" + ", ".join(KEYS) + "):", ""]
     for t in ("before", "this"):
-        out.append(f"| {names[t]} | " + " | ".join(f"{best[t][k]:.2f}" for k in keys) + " |")
-    cores, n = os.cpu_count() or 1, runs["runs"]
-    out += ["", "Of the stand-in's compute phase, the vectors are about GPU chunk µs x runs / cores: "
-            + ", ".join(f"{names[t]} {best[t]['card_us'] * n / 1e6 / cores:.2f} s" for t in ("before", "this"))
-            + "; the chunks' writes about writes / cores: "
-            + ", ".join(f"{names[t]} {best[t]['writes'] / cores:.2f} s" for t in ("before", "this"))
-            + ". The rest is the sweep's process: the card's answers, each chunk read back and the table's "
-            "blocks written (and the workers' results awaited).",
-            "", "Every round (" + ", ".join(keys) + "):", ""]
-    for t in ("before", "this"):
-        out.append(f"- {names[t]}: " + "; ".join(", ".join(f"{r[k]:.2f}" for k in keys) for r in rows[t]))
-    return "\n".join(out) + "\n"
+        out.append(f"- {names[t]}: " + "; ".join(", ".join(f"{r[k]:.2f}" for k in KEYS) for r in rows[t]))
+    return "\n".join(out) + "\n" + (f"\n{earlier.rstrip()}\n" if earlier else "")
+
+
+def _earlier(path: Path) -> str:
+    """What the page at `path` keeps from EARLIER on (empty: nothing)."""
+    text = path.read_text() if path.exists() else ""
+    return text[text.index(EARLIER):] if EARLIER in text else ""
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--before", default="c3a4204", help="a revision that prepares one run at a time")
+    ap.add_argument("--before", default="c3a4204", help="an earlier revision (c3a4204: one run at a time; "
+                    "bb7ffbe: chunks read back from Parquet, the table's blocks through NumPy)")
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--spec", default="sweeps/envelope.yaml")
     ap.add_argument("--out", type=Path, default=ROOT / "results" / "prepare.md")
@@ -143,7 +176,7 @@ def main() -> None:
             for t in (("before", "this") if k % 2 == 0 else ("this", "before")):
                 rows[t].append(measure(trees[t], spec, Path(tmp)))
                 print(t, json.dumps(rows[t][-1]), flush=True)
-    text = page(rows, args, names)
+    text = page(rows, args, names, _earlier(args.out))
     print(text)
     args.out.write_text(text)
 
