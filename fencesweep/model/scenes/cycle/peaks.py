@@ -258,7 +258,7 @@ find_touch = bisector(touch_changed, "cycle_find_touch")
 def touch_in_step(p, w, t, h, theta_end, release):
     """touch_changes, called only for the steps that need it: most steps neither end at a release
     nor carry the fence force across the touch floor (such a call, with the work arrays, in every
-    step cost ~5 % of a cycle: +13.2 % against +7.8 % for the whole change, warm_revisions.py)."""
+    step cost ~5 % of a cycle: +13.2 % against +7.8 % for the whole change, results/warm_revisions.md)."""
     was = w.acc[A_TOUCH] != 0.0
     if (release and not was) or touching(w.qv[QV_1, Q_NF], p) != was:
         touch_changes(p, w, t, h, theta_end, release)
