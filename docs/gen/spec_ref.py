@@ -168,7 +168,7 @@ def _sections() -> list:
             ("confidence", "number in (0, 1)", _at("risk", "confidence"),
              "the level the intervals of all a unit's looks hold together"),
             ("first", "integer", _at("risk", "first"), "parcels at the screening look"),
-            ("growth", "number >= 1", _at("risk", "growth"), "each later look's size over the last's"),
+            ("growth", "number > 1", _at("risk", "growth"), "each later look's size over the last's (from the least size at which no failure decides below p_max)"),
             ("cap", "integer", _at("risk", "cap"), "parcels at most per element and operating point"),
             ("limits", "mapping", "below", "what counts as broken (`risk.limits`)"),
             ("samples", "boolean", _at("risk", "samples"), "also write `OUT_samples.parquet`, one row per cycle"),
