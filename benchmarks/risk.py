@@ -67,7 +67,7 @@ def replay(sp, events: np.ndarray, p_max: float, plan=None):
         return out
 
     if plan is None:
-        plan = SQ.look_plan(sp.first, sp.growth, sp.cap, p_max, 1 - sp.confidence)
+        plan = sp.plan(p_max)
     return SQ.run_rounds(len(events), evaluate, plan, p_max)
 
 

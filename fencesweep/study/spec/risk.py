@@ -87,11 +87,12 @@ class RiskSpec:
         """(element index, operating point index) of every unit, elements outermost."""
         return list(itertools.product(range(len(self.elements)), range(len(self.operating))))
 
-    def plan(self) -> tuple:
-        """(sizes, alphas): the looks at each unit and the level spent at each (risk/sequential.py
-        look_plan): first, then from the size at which a unit without a failure can be decided
-        below p_max, growth times the last, ..., cap."""
-        return look_plan(self.first, self.growth, self.cap, self.p_max, 1 - self.confidence)
+    def plan(self, p_max: float | None = None) -> tuple:
+        """(sizes, alphas): the looks at each unit and the level spent at each (look_plan): first,
+        then from the size at which a unit without a failure can be decided below p_max (the
+        spec's unless given), growth times the last, ..., cap."""
+        return look_plan(self.first, self.growth, self.cap, self.p_max if p_max is None else p_max,
+                         1 - self.confidence)
 
     def schedule(self) -> list:
         """The sample sizes at which each unit is looked at (plan)."""
