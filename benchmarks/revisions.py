@@ -1,6 +1,5 @@
-"""An earlier revision's tree, kept only for benchmarks/prepare.py, which still imports it: the
-revision-against-revision benchmarks retired to asv (`asv continuous REV HEAD`, benchmarks/README.md);
-remove this module when prepare.py no longer imports it.
+"""An earlier revision's tree, for tip.py's --before and instructions.py's REV (comparing timings of
+revisions is asv's: `asv continuous REV HEAD`, benchmarks/README.md).
 
     from revisions import export
     tree = export("c3a4204")   # .fencesweep-revisions/<commit>/ (git-ignored), made once, then reused
