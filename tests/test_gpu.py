@@ -59,11 +59,25 @@ def cycles():
     return Cycles()
 
 
+@pytest.fixture(scope="module")
+def cycle_ptx(cycles):
+    """cycle_ptx(cc): the cycle kernel's PTX for cc without NVVM's optimisation, compiled once per
+    cc in this module (a compile takes ~10 s; two tests read sm_90's)."""
+    made = {}
+
+    def ptx(cc):
+        if cc not in made:
+            made[cc] = cycles.ptx(cc, opt=False)
+        return made[cc]
+
+    return ptx
+
+
 @pytest.mark.parametrize("cc", [(8, 0), (9, 0)])
-def test_the_cycle_kernel_compiles_to_ptx_for_sm80_and_sm90(cycles, cc):
+def test_the_cycle_kernel_compiles_to_ptx_for_sm80_and_sm90(cycle_ptx, cc):
     """The whole cycle, type-checked and compiled by numba-cuda (without NVVM's optimisation, as
     `fencesweep gpu-info --ptx CC --no-optimize`), with no GPU here."""
-    ptx = cycles.ptx(cc, opt=False)
+    ptx = cycle_ptx(cc)
     assert f".target sm_{cc[0]}{cc[1]}" in ptx
     assert ".entry" in ptx and "cycle_threads" in ptx
     assert ".f64" in ptx  # the cycle runs in double precision
@@ -84,12 +98,12 @@ def test_the_gpu_kernel_is_cached_under_the_kernel_sources_hash(cycles):
         p.relative_to(cache.PKG).as_posix() for p in cache._kernel_sources()}
 
 
-def test_every_kernel_function_the_cycle_calls_is_a_device_function(cycles):
+def test_every_kernel_function_the_cycle_calls_is_a_device_function(cycles, cycle_ptx):
     """No CPU kernel function is left in what the GPU's copies call: each name that their code uses
     is a device function (or a proxy module of them) once the kernel has compiled."""
     from fencesweep.kernel.jit import KernelDispatcher
 
-    cycles.ptx((9, 0), opt=False)
+    assert ".entry" in cycle_ptx((9, 0))  # compiled (once in this module: the sm_90 test's PTX)
     made = [dev for _, dev in cycles.tr._made.values() if hasattr(dev, "py_func")]
     assert len(made) > 100  # the cycle's ~150 kernel functions
     for dev in made:
@@ -187,14 +201,36 @@ SIM_SPEC = textwrap.dedent("""\
     """)
 
 
+#: `fencesweep ARGS...` on the simulator, whose block waits for its threads by polling them without a
+#: pause: the poll holds the interpreter's lock half the time, which the one thread that runs the
+#: kernel waits for (the run twice as long). Here each poll sleeps 0.5 ms first; the threads and
+#: what they compute are the simulator's own.
+ON_THE_SIMULATOR = textwrap.dedent("""\
+    import sys, threading, time
+    from numba.cuda.simulator import kernel as simulated
+
+    if hasattr(simulated, "BlockThread"):
+        def is_alive(thread, _is_alive=threading.Thread.is_alive):
+            time.sleep(0.0005)
+            return _is_alive(thread)
+
+        simulated.BlockThread.is_alive = is_alive
+    from fencesweep.cli import main
+
+    sys.argv = ["fencesweep", *sys.argv[1:]]
+    sys.exit(main())
+    """)
+
+
 def test_backend_cuda_on_the_simulator_writes_the_cpus_table(tmp_path):
     """`fencesweep grid --backend cuda` on Numba's CUDA simulator (every GPU thread run in Python,
     a few seconds a cycle): the CPU's table, row by row, and the device in its metadata."""
     spec = tmp_path / "sim.yaml"
     spec.write_text(SIM_SPEC.replace("B2: [0.0, 72.0, 300.0]", "B2: [0.0, 300.0]"))  # 8 rows: the simulator is slow
     gpu, cpu = tmp_path / "gpu.parquet", tmp_path / "cpu.parquet"
-    r = _fencesweep("grid", str(spec), "--backend", "cuda", "--out", str(gpu), "--jobs", "1", "--quiet",
-                    env={"NUMBA_ENABLE_CUDASIM": "1"})
+    r = subprocess.run([sys.executable, "-c", ON_THE_SIMULATOR, "grid", str(spec), "--backend", "cuda", "--out",
+                        str(gpu), "--jobs", "1", "--quiet"], capture_output=True, text=True,
+                       env={**os.environ, "NUMBA_ENABLE_CUDASIM": "1"}, timeout=900)
     assert r.returncode == 0, r.stderr[-3000:]
     r = _fencesweep("grid", str(spec), "--out", str(cpu), "--jobs", "1", "--quiet")
     assert r.returncode == 0, r.stderr[-3000:]
