@@ -1,4 +1,4 @@
-"""The GPU path against the CPU on the same machine: cycles per second, kernel and end-to-end
+"""What does a GPU give against the CPU? On the same machine: cycles per second, kernel and end-to-end
 time, and the tables compared row by row (results/gpu.md).
 
     python benchmarks/gpu.py [--specs sweeps/envelope.yaml sweeps/b2k2.yaml] [--sample 2048]
@@ -7,44 +7,34 @@ time, and the tables compared row by row (results/gpu.md).
     NUMBA_ENABLE_CUDASIM=1 python benchmarks/gpu.py --smoke --out F     the script itself, on Numba's
                                                                         CUDA simulator (two cycles)
 
-Per spec, each run a fresh process through the Python API (`run_grid`, the CLI's call):
-  gpu cold   --backend cuda with an empty Numba cache: the spec read to the table written, the
-             numba-cuda compile of the cycle kernel included (a user's first GPU run);
-  gpu warm   the same again, the kernel loaded from the cache; its "gpu" seconds are the batches'
-             launch to results back (the kernel, and the copies to and from the card);
-  cpu all    --backend loky on all cores (--jobs = this machine's cores), warm;
-  cpu 1 core the cycles of `--sample` runs spread evenly over the spec, one after another in one
-             warm process (model/simulate.py simulate_resolved): one core's cycles per second.
-The GPU's cycles per second are the runs over the warm run's "gpu" seconds; the bar is 100x one
-core. The tables (gpu warm, cpu all) are compared row by row: outcomes equal, and every value
-within 1e-6 relative (floored at 1: |a - b| <= 1e-6 max(1, |a|)), n_steps within a few. A row
-over it is re-run on the CPU at tol / 10: where the CPU's own table is as far from that as from
-the GPU's, the CPU's verification would flag the row too (counted apart).
+Per spec, each run a fresh process through `run_grid` (the CLI's call): gpu cold (--backend cuda, an
+empty Numba cache: the numba-cuda compile included), gpu warm (its "gpu" seconds: the batches' launch
+to results back), cpu all (--backend loky on all cores, warm), cpu 1 core (`--sample` runs spread
+evenly over the spec, one after another in one warm process). The GPU's cycles per second are the runs
+over the warm run's "gpu" seconds; the bar is 100x one core. The tables (gpu warm, cpu all) are
+compared row by row: equal outcomes, every value within |a - b| <= 1e-6 max(1, |a|), n_steps within a
+few; a row over it is re-run on the CPU at tol / 10, and where the CPU's own value is as far from that
+the CPU's verification would flag the row too (counted apart).
 
---stand-in measures, on a machine without a GPU, what the GPU path costs the CPU: the same run
-with the card replaced by a stand-in that answers each batch at once with a real cycle's result
-row (no verification: the rows are not the scenes'): planning, preparing the parameter vectors,
-writing the chunks and the table.
+--stand-in, without a GPU: the card replaced by a stand-in that answers each batch at once with a real
+cycle's result row (unverified: the rows are not the scenes'), so what remains is the GPU path's CPU
+side: planning, the parameter vectors, the chunks and the table.
 
-On the device machine (no network; numba, numba-cuda and the rest in its image): run from the
-repository root with PYTHONPATH=. (nothing to install), e.g.
+On the device machine (no network; numba-cuda in its image), from the repository root:
     PYTHONUNBUFFERED=1 PYTHONPATH=. python3 benchmarks/gpu.py --out $OUT/gpu.md --json $OUT/gpu.json
-A numba-cuda other than the image's travels as wheels (the device tool's README).
 """
 from __future__ import annotations
 
 import argparse
 import json
 import os
-import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
+from common import ROOT, md_table, run_json
 
-ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "results" / "gpu.md"
 SMOKE_SPEC = """\
 description: the benchmark's smoke test on the simulator
@@ -87,11 +77,7 @@ print(json.dumps({"runs": len(vals), "seconds": time.perf_counter() - t}))
 
 
 def _python(code: str, *args, env: dict | None = None) -> dict:
-    r = subprocess.run([sys.executable, "-c", code, *map(str, args)], capture_output=True, text=True,
-                       env={**os.environ, "PYTHONPATH": str(ROOT), **(env or {})}, cwd=ROOT)
-    if r.returncode != 0:
-        raise RuntimeError(f"a benchmark run failed:\n{r.stderr[-4000:]}")
-    return json.loads(r.stdout.strip().splitlines()[-1])
+    return run_json(code, *args, env={"PYTHONPATH": str(ROOT), **(env or {})})
 
 
 def stand_in() -> None:
@@ -109,17 +95,11 @@ def stand_in() -> None:
 
     class Done:
         def __init__(self, n):
-            self.n = n
-
-        def result(self):
-            return np.tile(row, (self.n, 1))
+            self.result = lambda: np.tile(row, (n, 1))
 
     class StandIn:
-        def free_memory(self):
-            return None
-
-        def launch(self, P):
-            return Done(P.shape[0])
+        free_memory = staticmethod(lambda: None)
+        launch = staticmethod(lambda P: Done(P.shape[0]))
 
     pipeline.gpu_device = lambda spec: {"backend": "cuda", "name": "stand-in (no GPU)"}
     gpu.runner = lambda: StandIn()
@@ -206,31 +186,26 @@ def _md(rows: list, args) -> str:
             f"Machine: {os.cpu_count()} cores; GPU: {gpus[0]['name'] if gpus else 'none'}; numba-cuda "
             f"{cuda.version()}. {time.strftime('%Y-%m-%d')}.", ""]
     if args.stand_in:
-        head += ["No GPU here: the card is replaced by a stand-in that answers each batch at once (module "
-                 "docstring), so these are the GPU path's CPU side alone: planning, the kernels' load and timed "
-                 "sample, the parameter vectors, the chunks and the table, against the whole CPU run on all cores "
-                 "of this machine (neither verified). `compute` is the phase in which the card would run. The "
-                 "GPU's own seconds await a machine with one.", "",
-                 "| spec | runs | stand-in: command s | its compute s | cpu all cores: command s |",
-                 "|---|---:|---:|---:|---:|"]
-        for r in rows:
-            s, c = r["stand_in"], r["cpu_all"]
-            head.append(f"| {r['spec']} | {s['runs']:,} | {s['wall']:.2f} | {s['timings'].get('compute', 0):.2f} | "
-                        f"{c['wall']:.2f} |")
-        return "\n".join(head) + "\n"
-    head += ["| spec | runs | one core: cycles/s | all cores: command s | GPU cold: command s | GPU warm: command s "
-             "| GPU batches s | GPU cycles/s | x one core |", "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
+        return "\n".join(head + [
+            "No GPU here: the card is replaced by a stand-in that answers each batch at once (module docstring), "
+            "so these are the GPU path's CPU side alone: planning, the kernels' load and timed sample, the parameter "
+            "vectors, the chunks and the table, against the whole CPU run on all cores of this machine (neither "
+            "verified). `compute` is the phase in which the card would run. The GPU's own seconds await a machine "
+            "with one.", "",
+            *md_table(["spec", "runs>", "stand-in: command s>", "its compute s>", "cpu all cores: command s>"], [
+                [r["spec"], f"{r['stand_in']['runs']:,}", f"{r['stand_in']['wall']:.2f}",
+                 f"{r['stand_in']['timings'].get('compute', 0):.2f}", f"{r['cpu_all']['wall']:.2f}"] for r in rows])]) + "\n"
+    table = []
     for r in rows:
-        one = r["cpu_one"]["runs"] / r["cpu_one"]["seconds"]
-        warm = r["gpu_warm"]
+        one, warm = r["cpu_one"]["runs"] / r["cpu_one"]["seconds"], r["gpu_warm"]
         rate = warm["runs"] / max(warm["timings"].get("gpu", float("nan")), 1e-9)
-        head.append(f"| {r['spec']} | {warm['runs']:,} | {one:,.0f} | {r['cpu_all']['wall']:.1f} | "
-                    f"{r['gpu_cold']['wall']:.1f} | {warm['wall']:.1f} | {warm['timings'].get('gpu', 0):.2f} | "
-                    f"{rate:,.0f} | {rate / one:,.0f} |")
+        table.append([r["spec"], f"{warm['runs']:,}", f"{one:,.0f}", f"{r['cpu_all']['wall']:.1f}",
+                      f"{r['gpu_cold']['wall']:.1f}", f"{warm['wall']:.1f}", f"{warm['timings'].get('gpu', 0):.2f}",
+                      f"{rate:,.0f}", f"{rate / one:,.0f}"])
+    head += md_table(["spec", "runs>", "one core: cycles/s>", "all cores: command s>", "GPU cold: command s>",
+                      "GPU warm: command s>", "GPU batches s>", "GPU cycles/s>", "x one core>"], table)
     head += ["", "Tables, GPU warm against CPU all cores, row by row:", ""]
-    for r in rows:
-        head.append(f"- {r['spec']}: {json.dumps(r['compare'])}")
-    return "\n".join(head) + "\n"
+    return "\n".join(head + [f"- {r['spec']}: {json.dumps(r['compare'])}" for r in rows]) + "\n"
 
 
 def main() -> None:

@@ -21,7 +21,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+from common import ROOT, export
 #: one tree: the sample's parameter vectors, then `n` passes of run_cycles with collection on
 WORKER = r"""
 import os, subprocess, sys
@@ -46,14 +46,6 @@ for _ in range(n):
         run_cycles(*a)
 subprocess.run(["callgrind_control", "-i", "off", str(os.getpid())], capture_output=True)
 """
-
-
-def export(rev: str, dest: Path) -> Path:
-    """The files git tracks at revision `rev`, written into the new folder `dest`."""
-    dest.mkdir(parents=True)
-    archive = subprocess.run(["git", "archive", rev], cwd=ROOT, capture_output=True, check=True).stdout
-    subprocess.run(["tar", "-x", "-C", str(dest)], input=archive, check=True)
-    return dest
 
 
 def _start(tree: Path, cache: Path, passes: int, out: Path) -> subprocess.Popen:

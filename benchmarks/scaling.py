@@ -1,26 +1,22 @@
-"""More cores, more cycles? A study's cycles per second at 1, 2, 4, ... jobs, the time spent
-outside the cycles and the whole command's time.
+"""More cores, more cycles? A study's cycles per second at 1, 2, 4, ... jobs, the time spent outside the
+cycles and the whole command's time.
 
     python benchmarks/scaling.py [--spec sweeps/envelope.yaml] [--jobs 1 2 4 ...] [--rounds 1]
                                  [--out results/scaling.md]  -> prints, writes --out
 
-Each run is `fencesweep grid SPEC --jobs J` through the Python API (`run_grid`, the CLI's call),
-in a fresh process with a warm Numba cache, writing to a temporary folder, with its verification
-(as a user runs it). From the run's own record: wall seconds of the sweep, the compute phase
-(`timings["compute"]`, the chunks on the workers), the rest ("outside": planning, loading the
-kernels, the verification, the assembly, the tail), each phase, the workers' seconds running
-chunks summed over the chunks (`runs`), and the process's peak
-memory (its own, not the workers'); and the whole command's wall time (the process from its start, its
-imports included: what a user waits for). Cycles per second: the spec's scenes / the sweep's
-seconds. The speed-up is against the 2-job run (the bar: 16 jobs >= 6x of 2 jobs
-on a 16-core machine), and for the command against its 1-job run. An earlier revision's
-numbers: `asv continuous REV HEAD` (benchmarks/README.md, asv). Jobs default to powers of two up to this machine's cores. Run it alone on the
-machine: every job count wants every core it asks for.
+Each run is `fencesweep grid SPEC --jobs J` through `run_grid` (the CLI's call), with its verification,
+in a fresh process with a warm Numba cache, writing to a temporary folder. From the run's own record:
+the sweep's wall seconds, its compute phase (the chunks on the workers), the rest ("outside": planning,
+loading the kernels, the verification, the assembly, the tail), each phase (`runs`: the workers' seconds
+in chunks, summed) and the process's peak memory (not the workers'); and the whole command's wall time,
+imports included. Cycles per second: the scenes over the sweep's seconds, against the 2-job run (the
+bar: 16 jobs >= 6x of 2 jobs on a 16-core machine); the command against its 1-job run. Jobs default to
+powers of two up to this machine's cores; run it alone on the machine. Another revision's numbers:
+`asv continuous REV HEAD` (benchmarks/README.md).
 """
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import statistics
 import subprocess
@@ -29,7 +25,8 @@ import tempfile
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+from common import ROOT, run_json
+
 OUT = ROOT / "results" / "scaling.md"
 
 #: one run in a fresh process: the sweep's record (seconds, timings, scenes) and the peak memory
@@ -57,15 +54,9 @@ def default_jobs() -> list:
 
 
 def one_run(spec: str, jobs: int, tmp: Path) -> dict:
-    out = tmp / f"scaling_{jobs}.parquet"
     t0 = time.perf_counter()
-    r = subprocess.run([sys.executable, "-c", WORKER, str(ROOT / spec), str(out), str(jobs)], capture_output=True,
-                       text=True, cwd=tmp)
-    command = time.perf_counter() - t0
-    if r.returncode != 0:
-        raise SystemExit(f"jobs {jobs}: the run failed:\n{r.stderr[-2000:]}")
-    rec = json.loads(r.stdout.strip().splitlines()[-1])
-    rec["command"] = command
+    rec = run_json(WORKER, ROOT / spec, tmp / f"scaling_{jobs}.parquet", jobs, cwd=tmp)
+    rec["command"] = time.perf_counter() - t0
     rec["outside"] = rec["seconds"] - rec["timings"]["compute"]
     rec["cycles_per_s"] = rec["scenes"] / rec["seconds"]
     return rec

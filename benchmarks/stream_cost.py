@@ -1,28 +1,24 @@
-"""Cost of a stream per cycle against the cycle scene (docs/model.md §14): does a stream of
-n_cycles cost about n_cycles cycles?
+"""Does a stream of n cycles cost n cycles? A stream's cost per cycle against the cycle scene (docs/model.md §14).
 
     python benchmarks/stream_cost.py      -> prints a table, writes results/stream_cost.md
 
-Both scenes run the one compiled kernel (scenes/stream.py run_cycles; a cycle is a stream of
-one). Warm CPU time (time.process_time), the median of REPEATS repeats, the two measurements of
-a row interleaved: the two named cases as `cycle` runs (each RUNS times), and a stream of
-N_CYCLES cycles of alternating small_far / long_near loads (RUNS / N_CYCLES times), at T = t_c
-and at T = 2 t_c (where the fence rests alone for t_c after each cycle: the steps of that rest
-are the stream's extra cost). Per cycle: the stream's time over N_CYCLES, against the mean of
-the two cycles' times; and the steps (accepted + rejected) of each: a stream's later cycles
-start with the fence moving, which changes how many steps their contacts take (fewer or more),
-and its rest adds steps.
+Both scenes run the one compiled kernel (scenes/stream.py run_cycles; a cycle is a stream of one). Warm
+CPU time, the median of REPEATS repeats, a row's two measurements interleaved: the two named cases as
+`cycle` runs (RUNS each), and a stream of N_CYCLES cycles of alternating small_far / long_near loads
+(RUNS / N_CYCLES times) at T = t_c and at T = 2 t_c (the fence then rests alone for t_c after each cycle:
+the stream's extra steps). Per cycle: the stream's time over N_CYCLES against the two cycles' mean; and
+the steps (accepted + rejected) of each: a stream's later cycles start with the fence moving, which
+changes their contacts' steps, and its rest adds steps.
 """
 from __future__ import annotations
 
 import statistics
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
+from common import ROOT
 
-ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # this tree's package
 N_CYCLES = 20
 RUNS = 200

@@ -4,7 +4,7 @@
     python benchmarks/tip.py --tables [--before 8a6dc2a]    # the committed tables against REV's
 
 Runs dP cuts across the belt through the tip band, peak_force at each dP, in this tree and in an
-earlier revision's (revisions.export, its own process with PYTHONPATH set to its tree), and the
+earlier revision's (common.export, its own process with PYTHONPATH set to its tree), and the
 hump measure of each cut: the largest peak(dP) / max(peak(dP - 0.02), peak(dP + 0.02)) over the
 cut (dP +- 0.02 read off the cut, which holds them). A ratio near 2 is one overlap pushed twice;
 near 1, no hump. Writes results/tip.csv, results/tip_table.md and results/figures/tip_cuts.png.
@@ -18,15 +18,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
-
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "benchmarks"))
+from common import ROOT, export, pyplot, run_json, save
 
 #: the cuts: (name, simulate's arguments): small_far at R_s 0.5 on three drives, a long and a short load
 CUTS = (
@@ -61,10 +57,7 @@ print(json.dumps(out))
 
 def run_tree(tree: Path, dps: list[float]) -> dict:
     """The cuts' peak forces computed by the package in `tree`, in a process of its own."""
-    env = dict(os.environ, PYTHONPATH=str(tree))
-    r = subprocess.run([sys.executable, "-c", WORKER, json.dumps(CUTS), json.dumps(dps)], cwd=tree, env=env,
-                       capture_output=True, text=True, check=True)
-    return json.loads(r.stdout.strip().splitlines()[-1])
+    return run_json(WORKER, json.dumps(CUTS), json.dumps(dps), env={"PYTHONPATH": str(tree)}, cwd=tree)
 
 
 def hump(dps: np.ndarray, peaks: np.ndarray, side: float = SIDE) -> tuple[float, float]:
@@ -129,7 +122,6 @@ def main() -> None:
     if a.tables:
         tables(a.before)
         return
-    from revisions import export
     n = int(round((DP_HI - DP_LO) / a.step))
     dps = [round(DP_LO + i * a.step, 6) for i in range(n + 1)]
     before = run_tree(export(a.before), dps)
@@ -159,9 +151,7 @@ def main() -> None:
 
 def figure(df, path: Path, before: str) -> None:
     """The cuts, peak force against dP, before and after, one panel a cut."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
     names = list(dict.fromkeys(df.cut))
     fig, axes = plt.subplots((len(names) + 1) // 2, 2, figsize=(11, 2.6 * ((len(names) + 1) // 2)), sharex=True)
     for ax, name in zip(axes.flat, names):
@@ -178,8 +168,7 @@ def figure(df, path: Path, before: str) -> None:
     axes.flat[0].legend(fontsize=8, loc="upper left")
     fig.suptitle("Peak fence force across the belt, through the tip band", fontsize=11)
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
+    save(fig, path)
 
 
 if __name__ == "__main__":

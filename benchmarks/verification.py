@@ -25,10 +25,9 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from common import ROOT, pyplot, save
 
-ROOT = Path(__file__).resolve().parents[1]
-# this tree's package first; tests/: the independent reference (tests/reference/)
-sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
+sys.path[:0] = [str(ROOT), str(ROOT / "tests")]  # this tree's package first; tests/reference/: the reference
 
 import reference  # noqa: E402
 
@@ -118,11 +117,7 @@ def main_job_record() -> dict | None:
 
 
 def plot(df: pd.DataFrame, path: Path) -> None:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.6))
+    fig, axes = pyplot().subplots(1, 2, figsize=(11, 4.6))
     lo = 1e-12
     ax = axes[0]
     for (q, g), m in zip(df.groupby("quantity", sort=False), ("o", "s", "^")):
@@ -143,9 +138,7 @@ def plot(df: pd.DataFrame, path: Path) -> None:
            title="Verification against the per-row estimate")
     ax.legend(fontsize=8, loc="upper left")
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save(fig, path)
 
 
 def replace_section(page: Path, lines: list[str]) -> None:

@@ -1,29 +1,21 @@
-"""Speed against error: the engine, its RK4 baseline and SciPy's solve_ivp.
+"""What does an error cost in time? The engine, its RK4 baseline and SciPy's solve_ivp on every validation
+scene (tests/reference/results.csv: the model written independently, tests/reference/model.py, DOP853 at
+rtol 1e-10 with event restarts), each with its fully resolved §12 parameters (reference.row_params):
 
-Every scene of tests/reference/results.csv (tests/reference/scenes.yaml run by
-tests/reference/model.py: the same model written independently, SciPy DOP853 at rtol 1e-10
-with event restarts) is run with its *fully resolved* docs/model.md §12 parameters
-(reference.row_params: every value, I2 and t_max explicit) by
+  fencesweep DOPRI5   the engine's default integrator at step_factor 4 ... 0.1 (tolerance 1e-6 x step_factor^5)
+  fencesweep RK4      the engine's fixed-step baseline, integrator = rk4 at several dt
+  solve_ivp           tests/reference/model.py itself with RK45, DOP853 and LSODA at several rtol
 
-  fencesweep DOPRI5   : the engine's default integrator at step_factor 4 ... 0.1
-                        (tolerance 1e-6 x step_factor^5)
-  fencesweep RK4      : the engine's fixed-step baseline, integrator = rk4 at several dt
-  solve_ivp           : tests/reference/model.py itself (plain-Python right-hand side) with
-                        RK45, DOP853 and LSODA at several rtol
-
-and judged as tests/test_validation.py judges the engine (tests/reference/compare.py): relative errors of peak_force,
-deflection_max and t_exit with that test's floors (forces against max(|ref|, 0.1 x the
-scene's free-fall force), angles against max(|ref|, 0.01 rad), times against max(|ref|,
-1 ms)), the outcome, and the touches (a load-fence contact seen or not, a rail contact
-seen or not). Time: CPU time per cycle, warm (JIT and caches excluded), the median of
---repeat calls per scene (solve_ivp: one call per scene, in --jobs processes).
+judged as tests/test_validation.py judges the engine (tests/reference/compare.py: relative errors of
+peak_force, deflection_max and t_exit with that test's floors, the outcome, the touches). Time: CPU per
+cycle, warm, the median of --repeat calls a scene (solve_ivp: one call, in --jobs processes). The page
+ends with verification.py's section.
 
     python benchmarks/work_precision.py [--repeat 3] [--jobs 2] [--no-ivp] [--from-csv]
 
-writes results/work_precision.csv (one row per solver, setting and scene),
-results/work_precision.md and results/figures/work_precision.png. Time it alone on the
-machine. Compiled LSODA (numbalsoda), a row of the page before its peer retired
-(results/lsoda_peer.md), stays only where --from-csv reads a CSV that has it.
+writes results/work_precision.csv (a row per solver, setting and scene), results/work_precision.md and
+results/figures/work_precision.png; time it alone on the machine. Compiled LSODA (numbalsoda) is
+lsoda_peer.py's; its rows stay only where --from-csv reads a CSV that has them.
 """
 from __future__ import annotations
 
@@ -35,10 +27,9 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from common import ROOT, md_row, pyplot, save
 
-ROOT = Path(__file__).resolve().parents[1]
-# this tree's package first; tests/: the independent reference (tests/reference/)
-sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
+sys.path[:0] = [str(ROOT), str(ROOT / "tests")]  # this tree's package first; tests/reference/: the reference
 
 import reference  # noqa: E402
 from reference import compare  # noqa: E402  (the validation's error definition and floors)
@@ -140,12 +131,8 @@ def summarise(df: pd.DataFrame) -> pd.DataFrame:
 
 def md_table(df: pd.DataFrame) -> str:
     """A Markdown table (numbers to 3 significant digits)."""
-    def fmt(x):
-        return f"{x:.3g}" if isinstance(x, (float, np.floating)) else str(x)
-
-    rows = ["| " + " | ".join(df.columns) + " |", "|" + "---|" * len(df.columns)]
-    rows += ["| " + " | ".join(fmt(x) for x in r) + " |" for r in df.itertuples(index=False)]
-    return "\n".join(rows)
+    return "\n".join([md_row(df.columns), "|" + "---|" * len(df.columns)] + [
+        md_row(f"{x:.3g}" if isinstance(x, (float, np.floating)) else x for x in r) for r in df.itertuples(index=False)])
 
 
 STYLE = {ENGINE: ("C0", "o", "-"), RK4: ("C7", "s", "--"), "numbalsoda LSODA (cfunc)": ("C3", "D", "-"),
@@ -155,11 +142,7 @@ FLOOR = 1e-13   # plotted in place of an error of 0
 
 
 def plot(summary: pd.DataFrame, df: pd.DataFrame, path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     per = df.groupby(["solver", "setting"], sort=False).agg(max_e=("e_max", "max"), med_e=("e_max", "median"))
     s = summary.set_index(["solver", "setting"]).join(per).reset_index()
     fig, axes = plt.subplots(1, 2, figsize=(12.5, 5.6), sharex=True, layout="constrained")
@@ -184,9 +167,7 @@ def plot(summary: pd.DataFrame, df: pd.DataFrame, path: Path) -> None:
                title="each curve from its loosest setting (ringed) to its tightest", title_fontsize=8)
     fig.suptitle("Work-precision against the independent reference (validation scenes, fully resolved "
                  "parameters)", fontsize=11)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save(fig, path)
 
 
 def _legend_label(solver: str, g: pd.DataFrame) -> str:

@@ -1,0 +1,65 @@
+"""What the benchmark scripts share: the repository's root, a fresh process's JSON answer, a Markdown
+table, a figure written, an earlier revision's tree (`git archive` of a commit, for tip.py's --before
+and instructions.py's REV; comparing timings of revisions is asv's: `asv continuous REV HEAD`)."""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def run_json(code: str, *args, env: dict | None = None, cwd: Path = ROOT):
+    """`python -c code args` in a fresh process (env added to this one's): the JSON of its last line."""
+    r = subprocess.run([sys.executable, "-c", code, *map(str, args)], capture_output=True, text=True, cwd=cwd,
+                       env={**os.environ, **(env or {})})
+    if r.returncode:
+        raise SystemExit(f"a benchmark's process failed:\n{r.stderr[-4000:]}")
+    return json.loads(r.stdout.strip().splitlines()[-1])
+
+
+def md_row(cells) -> str:
+    return "| " + " | ".join(map(str, cells)) + " |"
+
+
+def md_table(head: list[str], rows=()) -> list[str]:
+    """A Markdown table's lines; a column named with a trailing ">" is right-aligned."""
+    return [md_row(c.rstrip(">") for c in head), "|" + "".join("---:|" if c[-1] == ">" else "---|" for c in head),
+            *map(md_row, rows)]
+
+
+def pyplot():
+    """matplotlib's pyplot, drawing to files only."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def save(fig, path: Path) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    pyplot().close(fig)
+
+
+def export(rev: str, dest: Path | None = None) -> Path:
+    """The files git tracks at revision `rev`, in `dest` (default .fencesweep-revisions/<commit>, git-ignored:
+    made once, then reused)."""
+    commit = subprocess.run(["git", "rev-parse", "--verify", f"{rev}^{{commit}}"], cwd=ROOT, capture_output=True,
+                            text=True, check=True).stdout.strip()
+    dest = Path(dest) if dest is not None else ROOT / ".fencesweep-revisions" / commit
+    if (dest / ".exported-commit").is_file():  # written last: the export is whole
+        return dest
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{dest.name}-", dir=dest.parent))
+    archive = subprocess.run(["git", "archive", commit], cwd=ROOT, capture_output=True, check=True).stdout
+    subprocess.run(["tar", "-x", "-C", str(tmp)], input=archive, check=True)
+    (tmp / ".exported-commit").write_text(commit + "\n")
+    tmp.rename(dest)
+    return dest
