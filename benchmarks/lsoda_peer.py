@@ -1,95 +1,39 @@
 """The peer: the cycle model of docs/model.md as one ``numba.cfunc`` integrated by compiled LSODA.
 
-A benchmark peer of the engine: the same scene ``cycle`` (docs/model.md §1-§6, §9, §11)
-written the way a Numba user would write it for `numbalsoda` -- one compiled right-hand side
-with the signature ``f(t, u, du, data)``, handed to ``numbalsoda.lsoda`` with a dense
-``t_eval`` grid -- and the results scraped from the samples: what the engine's own
-integrator buys against the compiled solver a Numba user would reach for first (the LSODA
-rows of benchmarks/work_precision.py, and results/lsoda_peer.md).  It is ported from
-docs/model.md and the reference (``tests/reference/model.py``) and imports nothing from the
-package ``fencesweep`` (only :func:`main`, which times the engine beside it, does).  The
-contact damping q (and the linear law's b_lin) are taken from the reference's
-``q_from_e`` / ``zeta_from_e``: the peer benchmarks the reference model, not the engine.
+How fast, and how wrong, is the compiled solver a Numba user would reach for first, beside the
+engine? The scene ``cycle`` (docs/model.md §1-§6, §9, §11) as one right-hand side ``f(t, u, du,
+data)`` handed to ``numbalsoda.lsoda`` with a dense ``t_eval`` grid, the results scraped from the
+samples. Ported from docs/model.md and the reference (tests/reference/model.py, whose q_from_e /
+zeta_from_e give the damping: the peer benchmarks the reference model); it imports nothing from
+``fencesweep`` except to time the engine beside it (time_named_cases).
 
-Model (one right-hand side, no events)
---------------------------------------
-State ``[x, y, phi, xd, yd, om, 10 alpha, alphadot]``; with the rigid drive the fence has
-no state (alpha = alpha_w) and with the rigid and the free drive a clock component z is
-appended (see "Step size" below).  alpha is stored times 10 so that LSODA's one scalar
-atol = 1e-3 rtol is the reference's per-component absolute tolerance (1e-3 rtol for the
-load, 1e-4 rtol for the fence angle).  Belt friction: Goyal-Ruina ellipse (§6).  Contacts
-(§5): the 4 corners against the fence with the side memory sigma_j, the fence tip inside
-the load with the separating-axis edge choice, the 4 corners against the rail; each with
-N = max(k1 D^1.5 + q sqrt(m1 k1) D^0.25 Ddot, 0) for D > 0 (or the linear law) and
-regularised Coulomb friction.  Drive (§2): the crank-rocker in closed form (theta0 of the
-minimum of beta found once per swing and coupler ratio, in Python) or the harmonic profile,
-at rest for t > t_c; the fence flexible (§3), rigid (alpha = alpha_w) or free (it follows
-the drive until the first fence force, then B2 = K2 = 0).  Once the outcome holds (centroid
-at y >= P_max, or every corner at x > l; or t >= t_max) the load exerts no force any more:
-it slides on under belt friction alone (which keeps it gone) and the fence runs alone to
-t_c, as docs/model.md §8 asks.
-
-Integration: ``lsoda`` from 0 to t_c on a uniform grid of spacing ``dt_eval``; if no outcome
-by t_c, on from t_c to t_max in chunks of ``CHUNK`` s until the outcome shows on the grid.
-
-Results from the samples: outcome scraped / escaped at the first grid point where it holds,
-t_exit located between that point and the one before by the cubic Hermite interpolant of
-the centroid's y (scraped) or of the last corner's x (escaped) -- the state carries the
-velocities; timeout at t_max; failed when LSODA reports failure, a sample is not finite, or
-a sampled penetration exceeds half the load's smaller side.  peak_force = max over the
-samples of the summed fence normal forces (corners + tip); with ``refine=True`` each
-sampled local maximum is re-integrated on a finer grid (see :func:`_refine_peak`).
-deflection_max = max |alpha - alpha_w| over the samples in [0, max(t_exit, t_c)].
-
-What LSODA cannot do that the reference does
----------------------------------------------
-* No event restarts.  The reference stops at every contact onset, separation, clipping of
-  N to 0, change of the tip's edge, corner passing the pivot or tip, drive end and outcome,
-  and restarts there, so no step straddles a jump or kink.  Here every such switch sits
-  inside a step; LSODA sees it only as a local error and rejects and shrinks steps around
-  it.  The outcome and the peaks are found on the output grid, not located: a force pulse
-  shorter than the grid spacing is under-read or missed (small_far's first impact rises to
-  its peak in 0.2 ms; a contact that begins and ends between two samples is not seen at
-  all, refined or not), and so is the nanosecond overlap in which the reference counts the
-  tip and a corner about to pass it at once.
-* Side memory.  The corners' sides sigma_j (§5.1) and the free fence's release instant are
-  state outside the ODE's state vector.  They live in the ``data`` array and are updated
-  by the right-hand side itself (sigma_j := sign h while the corner is past the tip, := +1
-  behind the pivot; release at the first call with a fence force > 0).  LSODA also calls
-  it for step attempts that it then rejects, so every change is logged with its time and
-  undone when a later call comes at an earlier t (the attempt that made it was rejected).
-  A change made by the predicted state of an attempt that is then accepted stays, and so
-  does one older than the last N_LOG changes.  The post-processing redoes the sigma_j
-  memory along the samples.
-* Step size.  numbalsoda's ``lsoda`` takes no max_step.  With the rigid or free drive
-  nothing in the ODE bounds LSODA's step while the load rides the belt (its motion is then
-  exactly linear): steps grew to 0.2 s and jumped into the fence.  A smooth clock component
-  z' = cos(2 pi CLOCK_CYCLES t / t_c) keeps them at ~10-25 ms through LSODA's own error
-  control, as the flexible fence's dynamics do by themselves.
-* Contacts at D ~ 0 with Ddot != 0 (a load resting on a free fence: the validation scenes
-  long_near_free, resting_on_free_fence): the damping term's Jacobian ~ D^-0.75 is unbounded
-  and, without the reference's contact modes (clipped, off), LSODA crawls at ~2e-7 s steps
-  (seconds per cycle; the results are right).
-* No contact bookkeeping: the stage times, A/B instants, n_impacts, contact and damper
-  energies of §10-§11 are not computed (they need the event machinery).  t_first_contact
-  is the first sample with a fence force.
-* Counters: numbalsoda reports none.  ``nfev`` is counted by the right-hand side in
-  ``data``; ``n_steps`` counts the changes of t between consecutive calls (LSODA evaluates
-  the corrector iterations and Jacobian columns of one step attempt at the same t), i.e.
-  step attempts, rejected ones included.
-
-Usage
------
-    python benchmarks/lsoda_peer.py              # timing table of the named cases, peer vs
-                                                 # engine, and the peer's errors against
-                                                 # tests/reference/results.csv
-                                                 # -> results/lsoda_peer.md
+    python benchmarks/lsoda_peer.py              # the named cases, peer beside engine, and the peer's
+                                                 # errors on tests/reference/results.csv -> results/lsoda_peer.md
     python benchmarks/lsoda_peer.py --no-errors  # the timing table only
 
-Time it with nothing else busy on the machine (both solvers run in one process).
+Time it with nothing else busy (both solvers run in one process). Needs numbalsoda (the bench
+extra), which builds from source with a Fortran compiler (Debian: gfortran).
 
-Needs the ``bench`` extra (``pip install -e ".[bench]"``): numbalsoda builds from source and
-needs a Fortran compiler (Debian: ``gfortran``).
+Model: state [x, y, phi, xd, yd, om, 10 alpha, alphadot]; the rigid drive has no fence state
+(alpha = alpha_w), the rigid and the free drive a clock component z appended. alpha is stored x10
+so that LSODA's one scalar atol = 1e-3 rtol is the reference's per-component tolerance. Belt
+friction, contacts (corners-fence with the side memory sigma_j, tip-edge, corners-rail), drive and
+fence as in §2-§6. Once the outcome holds (or t >= t_max) the load exerts no force and slides on
+under belt friction, the fence runs alone to t_c (§8). Integrated over [0, t_c] on a grid of
+spacing dt_eval, then on in chunks of CHUNK s until the outcome shows on the grid. The outcome at
+the first sample where it holds, t_exit on the cubic Hermite interpolant between it and the sample
+before; failed when LSODA fails, a sample is not finite or a penetration exceeds half the load's
+smaller side. peak_force: the largest sampled fence force (refine: re-integrated around each
+sampled maximum, _refine_peak); deflection_max over [0, max(t_exit, t_c)].
+
+What it cannot do that the reference does (what that costs: the page's notes): no event restarts
+(every contact switch sits inside a step; the outcome and the peaks are read off the grid); the
+corners' sides sigma_j and the free fence's release live in ``data``, set by the right-hand side
+and undone when LSODA calls it again at an earlier t (a rejected attempt: _rollback); no max_step
+(the clock z' = cos(2 pi CLOCK_CYCLES t / t_c) bounds the rigid and free drives' steps); no contact
+modes (a contact at D ~ 0 with Ddot != 0 crawls); no contact bookkeeping (§10-§11; t_first_contact
+is the first sample with a fence force); no counters from numbalsoda (nfev, and n_steps, the step
+attempts: changes of t between calls, counted in ``data``).
 """
 from __future__ import annotations
 
@@ -103,6 +47,7 @@ from pathlib import Path
 
 import numba as nb
 import numpy as np
+from common import md_table
 from numba import njit
 from numbalsoda import lsoda, lsoda_sig
 
@@ -126,19 +71,13 @@ REFINE_MAX = 3          # refine: at most this many of them
 REFINE_POINTS = 101     # refine: output points of each re-integration
 REFINE_LEVELS = 2       # refine: re-integrations per maximum (each zooms 50x)
 
-# ---------------------------------------------------------------------------
-# Parameters (docs/model.md §12)
-# ---------------------------------------------------------------------------
-
-DEFAULTS = {
-    "v": 2.0, "P_max": 0.7, "mu1": 0.4, "mu2": 0.25, "L": 0.7, "A": 0.1, "m1": 15.0,
-    "dP": 0.0, "R_s": 0.0, "phi0": 0.0, "e": 0.2, "k1": 4.0e6, "contact_law": "hertz",
-    "k_lin": None, "l": 1.2, "m2": 5.0, "I2": None, "B2": 72.0, "K2": 570.0,
-    "drive": "flexible", "t_c": 1.36, "swing": math.radians(42.0), "profile": "crank_rocker",
-    "coupler_ratio": 2.5, "H": 0.3, "dalpha_perm": 0.2618, "eps_v": 1e-3, "t_max": None,
-}
-CASES = {"small_far": {"L": 0.2, "A": 0.1, "dP": 0.6},
-         "long_near": {"L": 0.7, "A": 0.1, "dP": 0.0}}
+# ---- Parameters (docs/model.md §12)
+DEFAULTS = {"v": 2.0, "P_max": 0.7, "mu1": 0.4, "mu2": 0.25, "L": 0.7, "A": 0.1, "m1": 15.0, "dP": 0.0, "R_s": 0.0,
+            "phi0": 0.0, "e": 0.2, "k1": 4.0e6, "contact_law": "hertz", "k_lin": None, "l": 1.2, "m2": 5.0,
+            "I2": None, "B2": 72.0, "K2": 570.0, "drive": "flexible", "t_c": 1.36, "swing": math.radians(42.0),
+            "profile": "crank_rocker", "coupler_ratio": 2.5, "H": 0.3, "dalpha_perm": 0.2618, "eps_v": 1e-3,
+            "t_max": None}
+CASES = {"small_far": {"L": 0.2, "A": 0.1, "dP": 0.6}, "long_near": {"L": 0.7, "A": 0.1, "dP": 0.0}}
 
 
 def resolve(case: str | None = None, **overrides) -> dict:
@@ -158,10 +97,7 @@ def resolve(case: str | None = None, **overrides) -> dict:
     return p
 
 
-# ---------------------------------------------------------------------------
-# data array layout (float64, shared by the cfunc and the post-processing)
-# ---------------------------------------------------------------------------
-
+# ---- data array layout (float64, shared by the cfunc and the post-processing)
 (I_NFEV, I_NSTEP, I_TLAST, I_DRIVE, I_PROFILE, I_TC, I_PSI, I_OMEGA, I_CA, I_CB, I_CC, I_CD,
  I_TH0, I_BE0, I_V, I_M1, I_I1, I_L, I_A, I_LF, I_I2, I_B2, I_K2, I_MU2, I_EPS, I_LAW, I_K,
  I_C, I_FMAX, I_MMAX, I_RHO, I_PMAX, I_REL, I_TMAX, I_CLOCK, I_NLOG, I_SIG) = range(37)
@@ -174,10 +110,7 @@ FLEXIBLE, RIGID, FREE = 0, 1, 2
 CRANK_ROCKER, HARMONIC = 0, 1
 
 
-# ---------------------------------------------------------------------------
-# Drive (§2)
-# ---------------------------------------------------------------------------
-
+# ---- Drive (§2)
 @njit(cache=True)
 def _rocker(th, a, b, c, d):
     """Rocker angle beta(theta) (open assembly) and d beta / d theta."""
@@ -240,10 +173,7 @@ def crank_rocker_theta0(swing: float, coupler_ratio: float) -> tuple:
     return a, b, c, d, th0, _rocker(th0, a, b, c, d)[0]
 
 
-# ---------------------------------------------------------------------------
-# Forces (§3-§6): one function for the right-hand side and the post-processing
-# ---------------------------------------------------------------------------
-
+# ---- Forces (§3-§6): one function for the right-hand side and the post-processing
 @njit(cache=True, inline="always")
 def _law(D, Dd, p):
     """Unclipped normal force for D > 0 (§4): modified Kelvin or linear."""
@@ -277,10 +207,7 @@ def _evaluate(t, y, p, sig, dy, info, want_rhs, memory):
     Fx = -p[I_FMAX] * ux / S
     Fy = -p[I_FMAX] * uy / S
     Mz = -p[I_MMAX] * rho * om / S
-    Nf = 0.0
-    Nr = 0.0
-    Dmax = 0.0
-    tau = 0.0
+    Nf = Nr = Dmax = tau = 0.0
     # The load has left (§9: centroid at P_max, or every corner past x = l) or the run
     # timed out: no contact forces from then on, only belt friction, under which yd and
     # the load's x-velocity do not change sign, so the load stays gone; the fence runs on
@@ -317,9 +244,7 @@ def _evaluate(t, y, p, sig, dy, info, want_rhs, memory):
                         f = -mu2 * N * ws / math.sqrt(ws * ws + eps2)
                         fx = -sg * N * sa + f * ca
                         fy = sg * N * ca + f * sa
-                        Fx += fx
-                        Fy += fy
-                        Mz += rx * fy - ry * fx
+                        Fx, Fy, Mz = Fx + fx, Fy + fy, Mz + (rx * fy - ry * fx)
                         tau -= sg * N * sj
             # §5.3 corner-rail
             if gx <= 0.0 and gy < 0.0:
@@ -361,25 +286,15 @@ def _evaluate(t, y, p, sig, dy, info, want_rhs, memory):
                 f = -mu2 * N * slip / math.sqrt(slip * slip + eps2)
                 fx = -N * nx + f * tx
                 fy = -N * ny + f * ty
-                Fx += fx
-                Fy += fy
-                Mz += rx * fy - ry * fx
+                Fx, Fy, Mz = Fx + fx, Fy + fy, Mz + (rx * fy - ry * fx)
                 tau += -Tx * fy + Ty * fx                # reaction -F at T
-    info[0] = Nf
-    info[1] = Nr
-    info[2] = Dmax
-    info[3] = al
-    info[4] = aw
+    info[0], info[1], info[2], info[3], info[4] = Nf, Nr, Dmax, al, aw
     if not want_rhs:
         return
     if drive == FREE and Nf > 0.0 and not t >= p[I_REL]:
         p[I_REL] = t                            # §3: released at the first fence contact
-    dy[0] = u
-    dy[1] = w
-    dy[2] = om
-    dy[3] = Fx / p[I_M1]
-    dy[4] = Fy / p[I_M1]
-    dy[5] = Mz / p[I_I1]
+    dy[0], dy[1], dy[2] = u, w, om
+    dy[3], dy[4], dy[5] = Fx / p[I_M1], Fy / p[I_M1], Mz / p[I_I1]
     if drive == FLEXIBLE:
         dy[6] = ASCALE * ald
         dy[7] = (p[I_B2] * (awd - ald) + p[I_K2] * (aw - al) + tau) / p[I_I2]
@@ -450,10 +365,7 @@ def peer_rhs(t, u, du, data):
 RHS_ADDRESS = peer_rhs.address
 
 
-# ---------------------------------------------------------------------------
-# Post-processing on the samples
-# ---------------------------------------------------------------------------
-
+# ---- Post-processing on the samples
 @njit(cache=True)
 def _fence_angle(t, y, p, aw):
     """(alpha, alpha_w) at a sample, alpha_w given."""
@@ -490,17 +402,12 @@ def _post(ts, Y, p, sig, t_max, d_fail, out, awg):
             hc = -y[0] * math.sin(al) + y[1] * math.cos(al)
             if (hc > rad and y[1] > rad and sig[0] == 1.0 and sig[1] == 1.0 and sig[2] == 1.0
                     and sig[3] == 1.0):
-                info[0] = 0.0
-                info[1] = 0.0
-                info[2] = 0.0
-                info[3] = al
-                info[4] = aw
+                info[:3] = 0.0
+                info[3], info[4] = al, aw
             else:
                 _evaluate(ts[i], y, p, sig, dy, info, False, True)
-            for k in range(5):
-                out[i, k] = info[k]
-            for k in range(4):
-                out[i, 5 + k] = sig[k]
+            out[i, :5] = info
+            out[i, 5:] = sig
             if ts[i] <= t_max:
                 c, s = math.cos(y[2]), math.sin(y[2])
                 if info[2] > d_fail:
@@ -512,11 +419,8 @@ def _post(ts, Y, p, sig, t_max, d_fail, out, awg):
         else:
             aw = awg[i] if awg.size else _drive(ts[i], p)[0]
             al, aw = _fence_angle(ts[i], y, p, aw)
-            out[i, 0] = 0.0
-            out[i, 1] = 0.0
-            out[i, 2] = 0.0
-            out[i, 3] = al
-            out[i, 4] = aw
+            out[i, :3] = 0.0
+            out[i, 3], out[i, 4] = al, aw
     return first, kind
 
 
@@ -653,20 +557,11 @@ def _refine_peak(data0, ts, Y, info, last, rtol, atol, nf_max):
     return best, t_best, nfev
 
 
-def peer_cycle(params: dict, rtol: float = 1e-6, dt_eval: float = DT_EVAL,
-               refine: bool = False, samples: bool = False) -> dict:
-    """One work cycle of the reference model with compiled LSODA.
-
-    params: fully resolved docs/model.md §12 parameters (see :func:`resolve`).  rtol: LSODA's
-    relative tolerance (atol = 1e-3 rtol, on alpha 1e-4 rtol).  dt_eval: spacing of the
-    output grid [s].  refine: locate the peak force between the samples by re-integrating
-    around each sampled local maximum (see :func:`_refine_peak`).  samples: also return
-    the grid, the states and the per-sample forces as "_ts", "_Y", "_info".
-
-    Returns outcome, t_exit, peak_force, t_peak, peak_rail_force, deflection_max,
-    residual_deflection, alpha_max, t_first_contact, x_exit, phi_exit, max_penetration,
-    nfev, n_steps (step attempts), n_samples, status (and t_release with the free drive).
-    """
+def peer_cycle(params: dict, rtol: float = 1e-6, dt_eval: float = DT_EVAL, refine: bool = False) -> dict:
+    """One work cycle of the reference model with compiled LSODA: params fully resolved (resolve), rtol
+    LSODA's (atol = 1e-3 rtol, on alpha 1e-4 rtol), dt_eval the output grid's spacing [s], refine: the
+    peak force re-integrated around each sampled maximum (_refine_peak). The results (the dict's keys)
+    as the engine's, with nfev, n_steps (step attempts) and n_samples."""
     p = params
     t_c, t_max = float(p["t_c"]), float(p["t_max"])
     data = make_data(p)
@@ -747,130 +642,145 @@ def peer_cycle(params: dict, rtol: float = 1e-6, dt_eval: float = DT_EVAL,
         "n_samples": int(len(ts)),
         "status": status,
     }
-    if samples:
-        res["_ts"], res["_Y"], res["_info"] = ts, Y, info
     if p["drive"] == "free":
         res["t_release"] = float(data[I_REL]) if math.isfinite(data[I_REL]) else math.nan
     return res
 
 
-# ---------------------------------------------------------------------------
-# Errors against the reference (tests/reference/results.csv)
-# ---------------------------------------------------------------------------
-
+# ---- Errors against the reference (tests/reference/results.csv)
 def scene_params(row) -> dict:
     """Resolved parameters of one row of tests/reference/results.csv (its own columns)."""
-    p = {}
-    for k, dv in DEFAULTS.items():
-        val = row[k]
-        if isinstance(dv, str) or k in ("contact_law", "drive", "profile"):
-            p[k] = str(val)
-        else:
-            p[k] = float(val)
-    return p
+    return {k: str(row[k]) if isinstance(dv, str) or k in ("contact_law", "drive", "profile") else float(row[k])
+            for k, dv in DEFAULTS.items()}
 
 
 def errors(res: dict, ref) -> dict:
-    """Relative errors as in benchmarks/work_precision.py: peak_force against
-    max(|ref|, 1e-3 freefall force), deflection_max against max(|ref|, 1e-3 dalpha_perm),
-    t_exit against |ref|; and whether the outcome agrees."""
-    dperm = float(ref["dalpha_perm"])
-    fscale = 1e-3 * float(ref["freefall_force"])
-    return {
-        "e_peak_force": abs(res["peak_force"] - ref["peak_force"]) / max(abs(ref["peak_force"]), fscale),
-        "e_deflection_max": abs(res["deflection_max"] - ref["deflection_max"])
-        / max(abs(ref["deflection_max"]), 1e-3 * dperm),
-        "e_t_exit": abs(res["t_exit"] - ref["t_exit"]) / abs(ref["t_exit"]),
-        "outcome_ok": res["outcome"] == ref["outcome"],
-    }
+    """Relative errors as in benchmarks/work_precision.py: peak_force against max(|ref|, 1e-3 freefall
+    force), deflection_max against max(|ref|, 1e-3 dalpha_perm), t_exit against |ref|; the outcome."""
+    def rel(k, floor):
+        return abs(res[k] - ref[k]) / max(abs(ref[k]), floor)
+
+    return {"e_peak_force": rel("peak_force", 1e-3 * float(ref["freefall_force"])),
+            "e_deflection_max": rel("deflection_max", 1e-3 * float(ref["dalpha_perm"])),
+            "e_t_exit": rel("t_exit", 0.0), "outcome_ok": res["outcome"] == ref["outcome"]}
+
+
+def _cpu(f):
+    """(CPU seconds of one call of f, its result)."""
+    t = time.process_time()
+    res = f()
+    return time.process_time() - t, res
 
 
 def peer_errors(rtol: float = 1e-6, dt_eval: float = DT_EVAL, refine: bool = False,
                 repeat: int = 3, csv: Path | None = None, judge=None):
-    """The peer on every scene of tests/reference/results.csv: one row per scene with
-    solver, setting, id, time (CPU s per cycle, warm, median of ``repeat``), steps (nfev),
-    n_steps, outcome, status and the errors of ``judge(result, reference row)`` (default
-    :func:`errors`; benchmarks/work_precision.py passes its own) -- the columns of
-    benchmarks/work_precision.py's rows; a scene whose first (warm-up) run takes over SLOW
-    seconds is timed by that run alone.  Returns a pandas DataFrame."""
+    """The peer on every scene of tests/reference/results.csv (or csv), a DataFrame: solver, setting, id,
+    time (CPU s per cycle, warm, median of ``repeat``; a scene whose warm-up run takes over SLOW s: that
+    run), steps (nfev), n_steps, outcome, status and ``judge(result, reference row)`` (default errors)."""
     import pandas as pd
 
-    ref = pd.read_csv(csv or RESULTS)
     peer_cycle(resolve("small_far"), rtol, dt_eval, refine)          # JIT / cache load
     setting = f"rtol={rtol:g}, dt_eval={dt_eval:g}" + (", refined" if refine else "")
     rows = []
-    for _, r in ref.iterrows():
+    for _, r in pd.read_csv(csv or RESULTS).iterrows():
         p = scene_params(r)
-        t = time.process_time()
-        res = peer_cycle(p, rtol, dt_eval, refine)    # warm: q(e) and the drive grid cached
-        ts = [time.process_time() - t]
-        if ts[0] < SLOW:                               # a crawling scene is timed once
-            ts = []
-            for _ in range(repeat):
-                t = time.process_time()
-                res = peer_cycle(p, rtol, dt_eval, refine)
-                ts.append(time.process_time() - t)
+        runs = [_cpu(lambda p=p: peer_cycle(p, rtol, dt_eval, refine))]  # warm: q(e), the drive grid cached
+        if runs[0][0] < SLOW:                                             # a crawling scene is timed once
+            runs = [_cpu(lambda p=p: peer_cycle(p, rtol, dt_eval, refine)) for _ in range(repeat)]
+        res = runs[-1][1]
         rows.append({"solver": "numbalsoda LSODA (cfunc)", "setting": setting, "id": r["id"],
-                     "time": float(np.median(ts)), "steps": res["nfev"], "n_steps": res["n_steps"],
+                     "time": float(np.median([s for s, _ in runs])), "steps": res["nfev"], "n_steps": res["n_steps"],
                      "outcome": res["outcome"], "status": res["status"], **(judge or errors)(res, r)})
     return pd.DataFrame(rows)
 
 
-# ---------------------------------------------------------------------------
-# main: the peer beside the engine on the named cases, and the peer's errors
-# ---------------------------------------------------------------------------
-
+# ---- main: the peer beside the engine on the named cases, and the peer's errors
 DEGENERATE = {"long_near_free", "resting_on_free_fence"}   # exact force 0, see the notes
 PEER_CONFIGS = [("samples", DT_EVAL, False), ("refined", DT_EVAL, True)]
 
 
-def _md(rows: list[list], head: list[str]) -> list[str]:
-    out = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    return out + ["| " + " | ".join(str(x) for x in r) + " |" for r in rows]
-
-
 def _machine() -> str:
+    import os
     from importlib.metadata import version
 
-    cpu = platform.processor() or platform.machine()
-    try:
-        with open("/proc/cpuinfo") as f:
-            cpu = next(ln.split(":", 1)[1].strip() for ln in f if ln.startswith("model name"))
-    except (OSError, StopIteration):
-        pass
-    import os
-
+    with open("/proc/cpuinfo") as f:
+        cpu = next((ln.split(":", 1)[1].strip() for ln in f if ln.startswith("model name")), platform.machine())
     return (f"{cpu}, {os.cpu_count()} logical cores; Python {platform.python_version()}, "
             f"numpy {version('numpy')}, numba {version('numba')}, numbalsoda {version('numbalsoda')}")
 
 
-def time_named_cases(rtol: float, rounds: int) -> tuple[list, dict]:
-    """CPU time per cycle of the engine and the peer on small_far and long_near (flexible
-    drive, docs/model.md §12 defaults), warm, interleaved round by round; medians."""
+def time_named_cases(rtol: float, rounds: int) -> tuple[dict, dict]:
+    """CPU time per cycle of the engine and the peer on small_far and long_near (flexible drive, §12
+    defaults), warm, interleaved round by round: medians, and each job's result."""
     import fencesweep   # the engine, for the timing only
 
     jobs = {}
     for case in ("small_far", "long_near"):
         p = resolve(case)
-        y0 = initial_state(p)
-        n = max(int(math.ceil(p["t_c"] / DT_EVAL)), 1) + 1
-        grid = np.linspace(0.0, p["t_c"], n)
-        data = make_data(p)
+        grid = np.linspace(0.0, p["t_c"], max(int(math.ceil(p["t_c"] / DT_EVAL)), 1) + 1)
         jobs[(case, "fencesweep", "default")] = lambda case=case: fencesweep.simulate("cycle", case=case)
         for name, dt, ref in PEER_CONFIGS:
             jobs[(case, "peer", name)] = lambda p=p, dt=dt, ref=ref: peer_cycle(p, rtol, dt, ref)
-        jobs[(case, "peer", "lsoda alone")] = (
-            lambda y0=y0, grid=grid, data=data: lsoda(RHS_ADDRESS, y0, grid, data.copy(), rtol,
-                                                      ATOL_SCALE * rtol, MXSTEP))
+        y0, data = initial_state(p), make_data(p)
+        jobs[(case, "peer", "lsoda alone")] = lambda y0=y0, grid=grid, data=data: lsoda(
+            RHS_ADDRESS, y0, grid, data.copy(), rtol, ATOL_SCALE * rtol, MXSTEP)
     results = {k: f() for k, f in jobs.items()}        # warm (JIT, caches)
     times = {k: [] for k in jobs}
     for _ in range(rounds):
         for k, f in jobs.items():
-            t = time.process_time()
-            f()
-            times[k].append(time.process_time() - t)
-    med = {k: float(np.median(v)) for k, v in times.items()}
-    return med, results
+            times[k].append(_cpu(f)[0])
+    return {k: float(np.median(v)) for k, v in times.items()}, results
+
+
+def timing_rows(med: dict, res: dict, rtol: float) -> list[list]:
+    """The named cases' table: the engine, the peer's configurations, the lsoda call alone."""
+    rows = []
+    for case in ("small_far", "long_near"):
+        eng = med[(case, "fencesweep", "default")]
+        for key, solver, setting in [((case, "fencesweep", "default"), "fencesweep (engine)", "default step")] + [
+                ((case, "peer", name), f"peer: numbalsoda LSODA ({name})",
+                 f"rtol {rtol:g}, dt_eval {dt:g} s" + (", peak refined" if ref else "")) for name, dt, ref in PEER_CONFIGS]:
+            r = res[key]
+            rows.append([case, solver, setting, f"{med[key] * 1e3:.3f}", f"{med[key] / eng:.2f}",
+                         r.get("nfev", "–"), r["n_steps"], r["outcome"], f"{r['peak_force']:.2f}",
+                         f"{r['deflection_max']:.6f}", f"{r['t_exit']:.6f}"])
+        t = med[(case, "peer", "lsoda alone")]
+        rows.append([case, "peer: the lsoda call alone", f"rtol {rtol:g}, same grid", f"{t * 1e3:.3f}", f"{t / eng:.2f}",
+                     "", "", "", "", "", ""])
+    return rows
+
+
+def error_section(rtol: float, repeat: int) -> list[str]:
+    """The peer's errors on every validation scene, each configuration a row."""
+    import pandas as pd
+
+    summ, worst, deg = [], [], None
+    for name, dt, ref in PEER_CONFIGS:
+        df = peer_errors(rtol, dt, ref, repeat=repeat)
+        d = df[~df.id.isin(DEGENERATE)]
+        summ.append([f"rtol {rtol:g}, dt_eval {dt:g} s, {name}", len(d)] + [
+            f"{x:.2f}" for x in (d.time.median() * 1e3, d.time.mean() * 1e3)] + [
+            f"{x:.3g}" for x in (d.e_peak_force.max(), d.e_peak_force.median(), d.e_deflection_max.max(),
+                                 d.e_deflection_max.median(), d.e_t_exit.max(), d.outcome_ok.mean())])
+        w = d.nlargest(4, "e_peak_force")
+        worst.append(f"{name}: " + ", ".join(f"{i} {e:.2g}" for i, e in zip(w.id, w.e_peak_force)))
+        deg = df[df.id.isin(DEGENERATE)] if deg is None else deg
+        print(summ[-1], flush=True)
+    return [
+        "## The peer's errors against the reference", "",
+        f"Every scene of `tests/reference/results.csv` ({len(pd.read_csv(RESULTS))}; the reference: "
+        "tests/reference/model.py, DOP853 at rtol 1e-10 with event restarts), errors as in "
+        "`benchmarks/work_precision.py` (relative; peak_force against max(|ref|, 1e-3 of the "
+        "free-fall force), deflection_max against max(|ref|, 1e-3 dalpha_perm)). "
+        f"{' and '.join(sorted(DEGENERATE))} are left out of the summary: a load resting on a "
+        "free fence, whose exact force is 0 (the peer gets it right, but crawls: see the notes). "
+        f"Times: CPU per cycle, median of {repeat} after one warm-up run.", "",
+        *md_table(["peer", "scenes", "median ms per cycle", "mean ms per cycle", "max e(peak_force)",
+                    "median e(peak_force)", "max e(deflection_max)", "median e(deflection_max)", "max e(t_exit)",
+                    "outcome agreement"], summ), "",
+        "Largest peak_force errors — " + "; ".join(worst) + ".", "",
+        f"Times of the left-out scenes ({PEER_CONFIGS[0][0]}): "
+        + ", ".join(f"{i} {t * 1e3:.0f} ms" for i, t in zip(deg.id, deg.time)) + ".", ""]
 
 
 def main() -> None:
@@ -880,31 +790,10 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3, help="timed calls per scene for the errors")
     ap.add_argument("--no-errors", action="store_true", help="skip the errors against the reference")
     args = ap.parse_args()
-    rtol = args.rtol
-
-    med, res = time_named_cases(rtol, args.rounds)
-    rows = []
-    for case in ("small_far", "long_near"):
-        eng = med[(case, "fencesweep", "default")]
-        r = res[(case, "fencesweep", "default")]
-        rows.append([case, "fencesweep (engine)", "default step", f"{eng * 1e3:.3f}", "1.00", "–",
-                     r["n_steps"], r["outcome"], f"{r['peak_force']:.2f}", f"{r['deflection_max']:.6f}",
-                     f"{r['t_exit']:.6f}"])
-        for name, dt, ref in PEER_CONFIGS:
-            t = med[(case, "peer", name)]
-            r = res[(case, "peer", name)]
-            setting = f"rtol {rtol:g}, dt_eval {dt:g} s" + (", peak refined" if ref else "")
-            rows.append([case, f"peer: numbalsoda LSODA ({name})", setting, f"{t * 1e3:.3f}",
-                         f"{t / eng:.2f}", r["nfev"], r["n_steps"], r["outcome"], f"{r['peak_force']:.2f}",
-                         f"{r['deflection_max']:.6f}", f"{r['t_exit']:.6f}"])
-        t = med[(case, "peer", "lsoda alone")]
-        rows.append([case, "peer: the lsoda call alone", f"rtol {rtol:g}, same grid", f"{t * 1e3:.3f}",
-                     f"{t / eng:.2f}", "", "", "", "", "", ""])
-    head = ["case", "solver", "setting", "CPU ms per cycle", "÷ engine's time", "RHS calls (nfev)",
-            "steps", "outcome", "peak_force [N]", "deflection_max [rad]", "t_exit [s]"]
-    table = _md(rows, head)
+    table = md_table(["case", "solver", "setting", "CPU ms per cycle", "÷ engine's time", "RHS calls (nfev)", "steps",
+                      "outcome", "peak_force [N]", "deflection_max [rad]", "t_exit [s]"],
+                     timing_rows(*time_named_cases(args.rtol, args.rounds), args.rtol))
     print("\n".join(table), flush=True)
-
     text = [
         "# The peer in the table: compiled LSODA (numbalsoda) beside the engine", "",
         "Regenerate: `python benchmarks/lsoda_peer.py` (needs the `bench` extra: "
@@ -917,52 +806,13 @@ def main() -> None:
         "## Time per cycle, the named cases", "",
         f"Flexible drive, docs/model.md §12 defaults otherwise; CPU time per cycle, warm (JIT and caches "
         f"excluded), median of {args.rounds} calls interleaved round by round with the engine in "
-        "the same process. *samples*: the peak force is the largest sampled value; *refined*: every sampled local maximum above half the peak is "
-        "re-integrated on a 50x finer grid, twice. *the lsoda call alone*: the integration "
-        "on the same grid without any post-processing. Steps: the engine's integrator steps; "
+        "the same process. *samples*: the peak force is the largest sampled value; *refined*: every sampled local "
+        "maximum above half the peak is re-integrated on a 50x finer grid, twice. *the lsoda call alone*: the "
+        "integration on the same grid without any post-processing. Steps: the engine's integrator steps; "
         "for the peer, LSODA's step attempts (numbalsoda reports no counters: counted as the "
         "changes of t between right-hand-side calls, rejected attempts included).", "",
-        *table, "",
-    ]
-    if not args.no_errors:
-        import pandas as pd
-
-        summ = []
-        worst = []
-        deg = None
-        for name, dt, ref in PEER_CONFIGS:
-            df = peer_errors(rtol, dt, ref, repeat=args.repeat)
-            d = df[~df.id.isin(DEGENERATE)]
-            summ.append([f"rtol {rtol:g}, dt_eval {dt:g} s, {name}", len(d),
-                         f"{d.time.median() * 1e3:.2f}", f"{d.time.mean() * 1e3:.2f}",
-                         f"{d.e_peak_force.max():.3g}", f"{d.e_peak_force.median():.3g}",
-                         f"{d.e_deflection_max.max():.3g}", f"{d.e_deflection_max.median():.3g}",
-                         f"{d.e_t_exit.max():.3g}", f"{d.outcome_ok.mean():.3g}"])
-            w = d.nlargest(4, "e_peak_force")
-            worst.append(f"{name}: " + ", ".join(f"{i} {e:.2g}" for i, e in zip(w.id, w.e_peak_force)))
-            if deg is None:
-                deg = df[df.id.isin(DEGENERATE)]
-            print(summ[-1], flush=True)
-        n_ref = len(pd.read_csv(RESULTS))
-        text += [
-            "## The peer's errors against the reference", "",
-            f"Every scene of `tests/reference/results.csv` ({n_ref}; the reference: "
-            "tests/reference/model.py, DOP853 at rtol 1e-10 with event restarts), errors as in "
-            "`benchmarks/work_precision.py` (relative; peak_force against max(|ref|, 1e-3 of the "
-            "free-fall force), deflection_max against max(|ref|, 1e-3 dalpha_perm)). "
-            f"{' and '.join(sorted(DEGENERATE))} are left out of the summary: a load resting on a "
-            "free fence, whose exact force is 0 (the peer gets it right, but crawls: see the notes). "
-            f"Times: CPU per cycle, median of {args.repeat} after one warm-up run.", "",
-            *_md(summ, ["peer", "scenes", "median ms per cycle", "mean ms per cycle",
-                        "max e(peak_force)", "median e(peak_force)", "max e(deflection_max)",
-                        "median e(deflection_max)", "max e(t_exit)", "outcome agreement"]), "",
-            "Largest peak_force errors — " + "; ".join(worst) + ".", "",
-            f"Times of the left-out scenes ({PEER_CONFIGS[0][0]}): " + ", ".join(
-                f"{i} {t * 1e3:.0f} ms" for i, t in zip(deg.id, deg.time)) + ".", "",
-        ]
-    text += ["## Notes", "", NOTES]
+        *table, "", *([] if args.no_errors else error_section(args.rtol, args.repeat)), "## Notes", "", NOTES]
     out = ROOT / "results" / "lsoda_peer.md"
-    out.parent.mkdir(exist_ok=True)
     out.write_text("\n".join(text) + "\n")
     print(f"wrote {out.relative_to(ROOT)}")
 
