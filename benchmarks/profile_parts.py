@@ -1,69 +1,47 @@
 """Where does a warm cycle's time go, by part of the kernel? The instructions (and, with --perf, the
-time) of the warm cycle kernel, the entry point `run_cycles` on the main job's fixed 60-scene
-sample as instructions.py runs it, split by the part of the model or the integrator that executes
-them: the contact slots, the contact law, friction, the drive, the events, the peaks, the dense
-output, the integrator's stages and step control, the books. A profile of the compiled code as it
-is, before any optimisation.
+time) of the warm cycle kernel, `run_cycles` on the main job's fixed 60-scene sample as instructions.py
+runs it, split by the part of the model or the integrator that executes them (contact slots, contact
+law, friction, drive, events, peaks, dense output, stages, step control, books): a profile of the
+compiled code as it is, and what to cut first.
 
     python benchmarks/profile_parts.py [--perf 10] [--passes 1] [--no-check] [--keep DIR] [--out FILE]
     python benchmarks/profile_parts.py --from DIR       # the page again from a folder --keep kept
 
-writes results/profile_parts.md (~3 min on 2 cores with --perf 10: four compiles of ~30-60 s, the
-rest tens of seconds each).
+writes results/profile_parts.md (~3 min on 2 cores with --perf 10: four compiles of ~30-60 s).
 
-Method. Most kernel functions are inlined (kernel(inline=True) is Numba's forceinline), so the
-machine code has a few large functions, and the JIT code has no symbols for a profiler. This
-script keeps the machine code as it is and asks where each instruction came from instead:
+Method. Most kernel functions are inlined (Numba's forceinline) and JIT code has no symbols, so the
+machine code is kept as it is and each instruction is asked where it came from:
+  1. compile: a process with an empty, private Numba cache (FENCESWEEP_COMPILE_HELPER=0) compiles
+     run_cycles with DWARF line tables and inline chains: Numba's debug info in its directives-only
+     mode (no noinline, no allocas kept, no bounds checks, lifetimes not extended: nothing that changes
+     the code), its compile unit emitted in full (a patch of CPUTargetOptions.finalize and DIBuilder in
+     this script's processes only). It keeps the object code MCJIT loads, compiled for the CPU valgrind
+     emulates (NUMBA_CPU_NAME / NUMBA_CPU_FEATURES as LLVM sees them under valgrind: no AVX-512), so
+     that the counting process loads it from the cache instead of compiling again;
+  2. check (unless --no-check): the same compile without line tables must give a byte-for-byte equal
+     code section (.ltext): the code profiled is the production code for that CPU;
+  3. count: under callgrind (--dump-instr=yes), collection on only around the loop (callgrind_control),
+     a process runs `passes` passes of the 60 scenes and reports where MCJIT put each function;
+  4. attribute: each instruction gets its inline chain from the object's DWARF (llvm-symbolizer
+     --inlining; else addr2line -i); a call to a library (libm's sincos, pow; libc; Numba's runtime) is
+     charged with its inclusive count to the call's chain; a call to a compiled function that is not
+     inlined is followed as callgrind recorded it, the callee's instructions spread over its callers'
+     chains in proportion to each call site's inclusive count (gprof's assumption: a callee costs the
+     same whoever calls it). The calls into the code from Python must add up to what was attributed;
+  5. time (--perf SECONDS): `perf record -e cpu-clock` samples the same loop, natively, for the build
+     counted and for the native build (compiled and checked the same way for this machine's CPU: the
+     production code, AVX-512 here); a sample is attributed as an instruction is.
 
-  1. compile: a process with an empty, private Numba cache (NUMBA_CACHE_DIR; and
-     FENCESWEEP_COMPILE_HELPER=0, so that nothing is compiled in another process) compiles
-     run_cycles with DWARF line tables: Numba's debug info switched on in its directives-only
-     mode (no `noinline`, no allocas kept for variables; no bounds checks, lifetimes not extended:
-     all that would change the code) and its compile unit emitted as full debug info, so that
-     every instruction carries its source line and the chain of functions inlined into one
-     another. This is a patch of numba.core.cpu.CPUTargetOptions.finalize and
-     numba.core.debuginfo.DIBuilder in this script's processes only: nothing in the package
-     changes. It keeps the entry point's object code (the ELF object MCJIT loads; the cache holds
-     the same bytes). The build is compiled for the CPU valgrind emulates (NUMBA_CPU_NAME /
-     NUMBA_CPU_FEATURES as LLVM sees them under valgrind: no AVX-512), which the counting process
-     then loads from the cache; under valgrind Numba would otherwise compile it again, since the
-     CPU is part of its cache key;
-  2. check (unless --no-check): the same compile without line tables, in another empty cache;
-     the two code sections (.ltext) must be byte for byte the same: the code profiled is the
-     production code for that CPU, only its metadata differs;
-  3. count: under `valgrind --tool=callgrind --dump-instr=yes`, collection switched on only
-     around the measured loop (callgrind_control, as instructions.py does), a process loads the
-     cached build and runs `passes` passes of the 60 scenes, and reports where MCJIT put each
-     function of the object (every function must sit at its symbol's offset from one base);
-  4. attribute: every instruction address in the code gets its inline chain from the object's
-     DWARF (llvm-symbolizer --inlining; addr2line -i without it); a call from the code to a
-     library (libm's sincos, pow; libc; Numba's runtime) is charged with its inclusive count to
-     the call's own chain. A call from one compiled function to another that is not inlined
-     (cycle_loop -> cycle_step, -> classify_after_rhs, ...) is followed as callgrind recorded it:
-     the callee's instructions count towards its callers' chains in proportion to each call
-     site's inclusive count (exact where a function has one caller). The calls into the code
-     from Python must add up to what was attributed (checked);
-  5. time (--perf SECONDS): `perf record -e cpu-clock` samples the same loop, natively, for the
-     build counted and for the native build (compiled and checked the same way for this
-     machine's CPU: the production code, AVX-512 here); a sample's address is attributed as an
-     instruction's, a sample in a library to that library's part.
+Columns: "own", each instruction to the innermost package function it was inlined from (Numba's helpers
+and library calls to the package line that called them; libraries have rows of their own): the rows add
+up to 100 %. "inclusive": every instruction under a function of the part, however deep (parts overlap).
+Per step: per accepted step, the rejected steps' work included.
 
-Columns. "own": each instruction to the innermost package function it was inlined from (Numba's
-helpers, e.g. the implementation of min, and library calls go to the package line that called
-them; the libraries have rows of their own); the rows add up to 100 %. "inclusive": every
-instruction under a function of the part, however deep (the parts overlap: the slots include
-the contact geometry and the drive they call). Per cycle: over the 60 scenes; per step: per
-accepted step (the work of rejected steps included).
-
-Limits. Callgrind's counts are exact and repeatable for this code and these scenes, but they
-are instructions: a square root or a division costs far more time than an addition (the time
-columns show where that matters: the contact law), and valgrind counts each byte of a `rep movsb`
-copy as an instruction. The attribution of an instruction to a source line is LLVM's: code merged
-from two lines or hoisted out of a loop goes to one of them, so a share of a few tenths of a
-percent says little. Following non-inlined calls by call-site counts assumes a callee costs the
-same whoever calls it (the usual gprof assumption). perf's samples land on the instruction the
-core is waiting for, so time gathers on long-latency instructions rather than on the work that
-overlaps them; with ~10^5 samples a share is good to a few tenths of a percent.
+Limits. Callgrind's counts are exact and repeatable, but instructions are not time (a square root costs
+far more than an addition; each byte of a `rep movsb` counts as an instruction). LLVM's line of an
+instruction merged from two lines or hoisted is one of them: a share of a few tenths of a percent says
+little. perf's samples land on the instruction the core waits for; ~10^5 samples give a share to a
+few tenths of a percent.
 """
 from __future__ import annotations
 
@@ -78,6 +56,8 @@ import subprocess
 import sys
 import tempfile
 from pathlib import Path
+
+from common import md_row, md_table
 
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "results" / "profile_parts.md"
@@ -390,44 +370,35 @@ def normal_files(chains: dict) -> dict:
 # ------------------------------------------------------------------ parts
 #: a frame's part by its file, and by function where a file holds more than one part; None:
 #: the frame's own instructions go to its caller's part (helpers that serve several parts)
+SLOTS, GEOMETRY = "contact slots (slots.py: manifold, classify, changed_at)", "contact geometry (contacts.py, load.py)"
+LAW, FRICTION = "contact law (normal force, D^1.5, D^0.25)", "friction (belt_friction, coulomb)"
+DRIVE, EVENTS = "drive (drive.py drive_angle)", "events: candidates and location (events.py, search.py)"
+PEAKS, BOOKS, DENSE = "peaks and tracked quantities (peaks.py)", "books (books.py)", "dense output (rk.py dense_coeffs, dense_eval)"
+LOOP = "integrator: loop and step control (driver.py, rk.py)"
+M, S, K = "fencesweep/model/", "fencesweep/model/scenes/", "fencesweep/kernel/"
 FILE_PARTS = {
-    "fencesweep/model/scenes/cycle/slots.py": "contact slots (slots.py: manifold, classify, changed_at)",
-    "fencesweep/model/scenes/contacts.py": "contact geometry (contacts.py, load.py)",
-    "fencesweep/model/scenes/load.py": "contact geometry (contacts.py, load.py)",
-    "fencesweep/model/contact.py": "contact law (normal force, D^1.5, D^0.25)",
-    "fencesweep/model/drive.py": "drive (drive.py drive_angle)",
-    "fencesweep/model/scenes/cycle/rhs.py": "right-hand side (rhs.py: equations, contact sums)",
-    "fencesweep/model/scenes/cycle/events.py": "events: candidates and location (events.py, search.py)",
-    "fencesweep/model/scenes/cycle/peaks.py": "peaks and tracked quantities (peaks.py)",
-    "fencesweep/model/scenes/cycle/books.py": "books (books.py)",
-    "fencesweep/model/scenes/cycle/run.py": "step handling (run.py: accept, move_on, step and tolerances)",
-    "fencesweep/model/scenes/stream.py": "cycle set-up (stream.py)",
-    "fencesweep/kernel/driver.py": "integrator: loop and step control (driver.py, rk.py)",
-    "fencesweep/kernel/rk.py": "integrator: stages (rk.py)",
-    "fencesweep/kernel/search.py": None,
+    S + "cycle/slots.py": SLOTS, S + "contacts.py": GEOMETRY, S + "load.py": GEOMETRY, M + "contact.py": LAW,
+    M + "drive.py": DRIVE, S + "cycle/rhs.py": "right-hand side (rhs.py: equations, contact sums)",
+    S + "cycle/events.py": EVENTS, S + "cycle/peaks.py": PEAKS, S + "cycle/books.py": BOOKS,
+    S + "cycle/run.py": "step handling (run.py: accept, move_on, step and tolerances)",
+    S + "stream.py": "cycle set-up (stream.py)", K + "driver.py": LOOP, K + "rk.py": "integrator: stages (rk.py)",
+    K + "search.py": None,
 }
 FUNCTION_PARTS = {
-    ("fencesweep/model/scenes/contacts.py", name): "contact law (normal force, D^1.5, D^0.25)"
-    for name in ("corner_fence_force", "corner_rail_force", "tip_edge_force", "damping_power", "friction_power",
-                 "next_code")} | {
-    ("fencesweep/model/contact.py", "belt_friction"): "friction (belt_friction, coulomb)",
-    ("fencesweep/model/contact.py", "coulomb"): "friction (belt_friction, coulomb)",
-    ("fencesweep/model/scenes/load.py", "outcome_margin"): "events: candidates and location (events.py, search.py)",
-    ("fencesweep/model/scenes/load.py", "initial_state"): "books (books.py)",
-    ("fencesweep/kernel/rk.py", "dense_coeffs"): "dense output (rk.py dense_coeffs, dense_eval)",
-    ("fencesweep/kernel/rk.py", "dense_eval"): "dense output (rk.py dense_coeffs, dense_eval)",
-    ("fencesweep/kernel/rk.py", "error_norm"): "integrator: loop and step control (driver.py, rk.py)",
-    ("fencesweep/kernel/rk.py", "next_step"): "integrator: loop and step control (driver.py, rk.py)",
-    ("fencesweep/model/scenes/cycle/rhs.py", "fence_state"): "drive (drive.py drive_angle)",
-} | {("fencesweep/kernel/search.py", name): "events: candidates and location (events.py, search.py)"
-     for name in ("cycle_find_change", "cycle_find_outcome", "cycle_find_crossing", "cycle_min_gap")} | {
-    ("fencesweep/kernel/search.py", name): "peaks and tracked quantities (peaks.py)"
-    for name in ("cycle_peak_of", "cycle_find_touch")}
+    **{(S + "contacts.py", name): LAW for name in ("corner_fence_force", "corner_rail_force", "tip_edge_force",
+                                                   "damping_power", "friction_power", "next_code")},
+    (M + "contact.py", "belt_friction"): FRICTION, (M + "contact.py", "coulomb"): FRICTION,
+    (S + "load.py", "outcome_margin"): EVENTS, (S + "load.py", "initial_state"): BOOKS,
+    (K + "rk.py", "dense_coeffs"): DENSE, (K + "rk.py", "dense_eval"): DENSE, (K + "rk.py", "error_norm"): LOOP,
+    (K + "rk.py", "next_step"): LOOP, (S + "cycle/rhs.py", "fence_state"): DRIVE,
+    **{(K + "search.py", name): EVENTS for name in ("cycle_find_change", "cycle_find_outcome", "cycle_find_crossing",
+                                                    "cycle_min_gap")},
+    **{(K + "search.py", name): PEAKS for name in ("cycle_peak_of", "cycle_find_touch")}}
 #: functions that only hold the others (the loop, the step's handling, the cycle's set-up): their
 #: frames do not make their instructions count towards their part's inclusive share, which would
 #: otherwise be nearly everything
-CONTAINERS = {("fencesweep/model/scenes/cycle/run.py", "run"), ("fencesweep/model/scenes/cycle/run.py", "accept"),
-              ("fencesweep/kernel/driver.py", "cycle_loop"), ("fencesweep/kernel/driver.py", "integrate")}
+CONTAINERS = {(S + "cycle/run.py", "run"), (S + "cycle/run.py", "accept"), (K + "driver.py", "cycle_loop"),
+              (K + "driver.py", "integrate")}
 #: libraries the kernel calls, by the callee's name
 LIBRARY_PARTS = (("sincos", "libm: sin, cos (sincos)"), ("sin", "libm: sin, cos (sincos)"),
                  ("cos", "libm: sin, cos (sincos)"), ("pow", "libm: pow"), ("numba_pow", "libm: pow"),
@@ -632,6 +603,15 @@ def _pct(x: float, total: float) -> str:
     return f"{100 * x / total:.1f} %"
 
 
+def _row(*cells) -> str:
+    return md_row(cells)
+
+
+def _table(title: str, intro: str, cols: list[str]) -> list[str]:
+    """A section's head and its table's (common.md_table: a column ending in ">" right-aligned)."""
+    return ["", f"## {title}", "", *([intro, ""] if intro else []), *md_table(cols)]
+
+
 class Page:
     """The page's numbers: the profile's attribution and the units (cycles, accepted steps)."""
 
@@ -643,10 +623,8 @@ class Page:
         self.steps, self.rejects = (x * state["passes"] for x in state["steps"])
         self.callees = collections.defaultdict(lambda: [0, 0, collections.Counter()])  # calls, cost, callers
         for site, callee, n, cost in prof.edges:
-            entry = self.callees[short_name(callee)]
-            entry[0] += n
-            entry[1] += cost
-            frame = own_frame(prof.chains[site])
+            entry, frame = self.callees[short_name(callee)], own_frame(prof.chains[site])
+            entry[0], entry[1] = entry[0] + n, entry[1] + cost
             entry[2][frame[0] if frame else "?"] += n
 
     def pct(self, x: float) -> str:
@@ -655,19 +633,16 @@ class Page:
     def head(self) -> list[str]:
         s, prof = self.state, self.prof
         return [
-            "# Where a warm cycle's instructions go, by part",
-            "",
+            "# Where a warm cycle's instructions go, by part", "",
             f"Regenerate: `python benchmarks/profile_parts.py{' --perf 10' if self.timing else ''}` (~3 min on 2 cores; "
-            "how, and what the numbers can and cannot say: its docstring).",
-            "",
+            "how, and what the numbers can and cannot say: its docstring).", "",
             f"Counted: the warm cycle kernel, `run_cycles`, on the main job's fixed sample of {N_SCENES} scenes "
             f"(benchmarks/asv_bench `main_job_sample`), {s['passes']} pass{'es' if s['passes'] > 1 else ''} under "
             f"callgrind: {prof.collected:,} instructions, {self.kernel:,} of them ({_pct(self.kernel, prof.collected)}) "
             "in the kernel's code and the library functions it calls, the rest Python's calls of the entry point. "
             f"**{self.kernel / self.cycles:,.0f} instructions a cycle, {self.steps / self.cycles:.1f} accepted steps a "
             f"cycle ({self.rejects / self.cycles:.1f} rejected), {self.kernel / self.steps:,.0f} instructions an "
-            "accepted step.**",
-            "",
+            "accepted step.**", "",
             f"The code counted is compiled for the CPU valgrind emulates ({s['cpu'][0]}: AVX2, no AVX-512), as "
             "instructions.py's counts are; the production build on this machine uses AVX-512. " + " ".join(s["checks"]),
         ]
@@ -676,8 +651,7 @@ class Page:
         top = collections.defaultdict(list)
         for (fn, file), cost in self.by_function.most_common():
             top[part_of((fn, file, 0))].append((fn, cost))
-        lines = [
-            "", "## By part", "",
+        lines = _table("By part", (
             "\"own\": each instruction to the innermost package function it was inlined from (Numba's helpers and "
             "library calls to the line that called them, libm's own rows aside); the rows add up to 100 %. "
             "\"inclusive\": every instruction under a function of the part, however deep (the parts overlap; "
@@ -686,12 +660,9 @@ class Page:
             + (" Time: the share of perf's cpu-clock samples (own, as the instructions), of the build counted and of "
                "the native (AVX-512) build, the production code; time shares moved by up to 3 points between runs on "
                "the shared 2-core machine (the contact law's square roots most), the instruction counts do not move."
-               if self.timing else ""),
-            "",
-            "| part | own | per cycle | per step | inclusive |" + "".join(f" {name} |" for name in self.timing)
-            + " most of it (own) |",
-            "|---|---:|---:|---:|---:|" + "---:|" * len(self.timing) + "---|",
-        ]
+               if self.timing else "")),
+            ["part", "own>", "per cycle>", "per step>", "inclusive>", *(f"{name}>" for name in self.timing),
+             "most of it (own)"])
         for part, cost in self.own.most_common():
             container = part.startswith(("step handling", "integrator: loop", "cycle set-up", "("))
             inc = "—" if container or part not in self.inclusive else self.pct(self.inclusive[part])
@@ -699,51 +670,48 @@ class Page:
             if part in self.library:
                 total, n = self.library[part][:2]
                 most = f"{n / self.cycles:,.1f} calls a cycle, {total / max(1, n):,.0f} instructions a call"
-            tcol = "".join(f" {_pct(t.get(part, 0), sum(t.values()))} |" for t in self.timing.values())
-            lines.append(f"| {part} | {self.pct(cost)} | {cost / self.cycles:,.0f} | {cost / self.steps:,.0f} | "
-                         f"{inc} |{tcol} {most} |")
+            lines.append(_row(part, self.pct(cost), f"{cost / self.cycles:,.0f}", f"{cost / self.steps:,.0f}", inc,
+                              *(_pct(t.get(part, 0), sum(t.values())) for t in self.timing.values()), most))
         return lines
 
     def libraries(self) -> list[str]:
-        lines = ["", "## Library calls, by caller", "",
-                 "| function | caller (innermost package function) | calls a cycle | calls a step | instructions a step |",
-                 "|---|---|---:|---:|---:|"]
+        lines = _table("Library calls, by caller", "", ["function", "caller (innermost package function)",
+                                                         "calls a cycle>", "calls a step>", "instructions a step>"])
         for part, (_, _, callers, costs, _) in sorted(self.library.items(), key=lambda kv: -kv[1][0]):
             for caller, k in callers.most_common(6):
                 name = f"{caller[0]} ({Path(caller[1]).name})" if isinstance(caller, tuple) else caller
-                lines.append(f"| {part} | {name} | {k / self.cycles:,.1f} | {k / self.steps:.2f} | "
-                             f"{costs[caller] / self.steps:,.0f} |")
-        lines += ["", "## Library calls, by path", "",
-                  "| function | path (innermost first) | calls a step |", "|---|---|---:|"]
+                lines.append(_row(part, name, f"{k / self.cycles:,.1f}", f"{k / self.steps:.2f}",
+                                  f"{costs[caller] / self.steps:,.0f}"))
+        lines += _table("Library calls, by path", "", ["function", "path (innermost first)", "calls a step>"])
         paths = collections.Counter()
         for offset, lib, _, n in self.prof.items:
             if lib is not None and lib.startswith("libm"):
                 chain = [f[0] for f in self.prof.chains[offset] if f[1].startswith("fencesweep/")]
                 paths[(lib, " < ".join(chain[:6]))] += n
         for (lib, path), n in paths.most_common(12):
-            lines.append(f"| {lib} | {path} | {n / self.steps:.2f} |")
+            lines.append(_row(lib, path, f"{n / self.steps:.2f}"))
         return lines
 
     def functions(self) -> list[str]:
-        lines = ["", "## Functions, by inclusive share", "",
-                 "Each function's instructions and those of everything it calls (inlined or not), and its own.", "",
-                 "| function | file | inclusive | own | inclusive per step |", "|---|---|---:|---:|---:|"]
+        lines = _table("Functions, by inclusive share", "Each function's instructions and those of everything it "
+                       "calls (inlined or not), and its own.", ["function", "file", "inclusive>", "own>",
+                                                                 "inclusive per step>"])
         funcs = [(k, v) for k, v in self.inclusive.items() if isinstance(k, tuple)]
         for (fn, file), cost in sorted(funcs, key=lambda kv: -kv[1])[:40]:
-            lines.append(f"| {fn} | {file.removeprefix('fencesweep/')} | {self.pct(cost)} | "
-                         f"{self.pct(self.by_function.get((fn, file), 0))} | {cost / self.steps:,.0f} |")
+            lines.append(_row(fn, file.removeprefix("fencesweep/"), self.pct(cost),
+                              self.pct(self.by_function.get((fn, file), 0)), f"{cost / self.steps:,.0f}"))
         return lines
 
     def calls(self) -> list[str]:
-        lines = ["", "## Calls of the functions that are not inlined", "",
-                 "The functions left as functions of their own (kernel/jit.py `kernel()` without inline, the specialised "
-                 "templates): how often a step calls each, and what a call costs with all it calls.", "",
-                 "| function | calls a step | instructions a call | inclusive | called from (calls a step) |",
-                 "|---|---:|---:|---:|---|"]
+        lines = _table("Calls of the functions that are not inlined", "The functions left as functions of their own "
+                       "(kernel/jit.py `kernel()` without inline, the specialised templates): how often a step calls "
+                       "each, and what a call costs with all it calls.", ["function", "calls a step>",
+                                                                          "instructions a call>", "inclusive>",
+                                                                          "called from (calls a step)"])
         for name, (n, cost, callers) in sorted(self.callees.items(), key=lambda kv: -kv[1][1]):
             if n / self.steps >= 0.01:
                 where = ", ".join(f"{c} {k / self.steps:.2f}" for c, k in callers.most_common(3))
-                lines.append(f"| {name} | {n / self.steps:.2f} | {cost / n:,.0f} | {self.pct(cost)} | {where} |")
+                lines.append(_row(name, f"{n / self.steps:.2f}", f"{cost / n:,.0f}", self.pct(cost), where))
         return lines
 
     def share(self, key, time_functions=None) -> str:
@@ -827,20 +795,19 @@ class Page:
             return []
         own, inclusive = time_functions
         t_total = sum(self.timing["time, native build"].values())
-        lines = ["", "## Functions, by time (native build)", "",
+        lines = _table("Functions, by time (native build)", (
                  "perf's samples of the native build: by the innermost package function (own) and under each function "
                  "(inclusive), beside the instructions' shares (the build counted). A function with more time than "
                  "instructions holds long-latency instructions (square roots, divisions, loads that wait): a sample "
-                 "lands on the instruction the core waits for.", "",
-                 "| function | file | time, own | instructions, own | time, inclusive | instructions, inclusive |",
-                 "|---|---|---:|---:|---:|---:|"]
+                 "lands on the instruction the core waits for."), ["function", "file", "time, own>", "instructions, own>",
+                                                                   "time, inclusive>", "instructions, inclusive>"])
         rows = {k for k, _ in own.most_common(25)} | {k for k, v in inclusive.items()
                                                        if isinstance(k, tuple) and k not in CONTAINERS
                                                        and v / t_total > 0.03 and not k[1].endswith("stream.py")}
         for fn, file in sorted(rows, key=lambda k: -own.get(k, 0)):
-            lines.append(f"| {fn} | {file.removeprefix('fencesweep/')} | {_pct(own.get((fn, file), 0), t_total)} | "
-                         f"{self.pct(self.by_function.get((fn, file), 0))} | "
-                         f"{_pct(inclusive.get((fn, file), 0), t_total)} | {self.pct(self.inclusive.get((fn, file), 0))} |")
+            lines.append(_row(fn, file.removeprefix("fencesweep/"), _pct(own.get((fn, file), 0), t_total),
+                              self.pct(self.by_function.get((fn, file), 0)), _pct(inclusive.get((fn, file), 0), t_total),
+                              self.pct(self.inclusive.get((fn, file), 0))))
         return lines
 
 
@@ -852,13 +819,21 @@ def report(prof: Profile, state: dict, timing: dict, time_functions) -> str:
 
 
 # ------------------------------------------------------------------ main
-def check_same_code(code: bytes, mode_cache: Path, obj: Path, cpu, what: str) -> str:
-    """Compile without line tables and compare the code sections (module docstring, step 2)."""
-    plain = code_section(compile_object("compile-plain", mode_cache, obj, cpu))
-    if plain != code:
-        raise SystemExit(f"{what}: the code compiled with line tables differs from the code without; the profile "
-                         "would not be of the production code")
-    return f"{what}: its code section ({len(code):,} bytes) is byte for byte that of the same compile without line tables."
+def build(a, state: dict, work: Path, name: str, cpu, what: str) -> Path:
+    """Compile run_cycles with line tables into work/cache-NAME, its object work/NAME.o (module docstring,
+    step 1), and unless --no-check the same without them, whose code section must be the same (step 2)."""
+    print(f"compiling the {name} build with line tables for {cpu[0] if cpu else 'this CPU'} ...", flush=True)
+    obj = work / f"{name}.o"
+    code = code_section(compile_object("compile", work / f"cache-{name}", obj, cpu))
+    if not a.no_check:
+        print("compiling it without them ...", flush=True)
+        if code_section(compile_object("compile-plain", work / f"cache-{name}-plain", work / f"{name}-plain.o",
+                                       cpu)) != code:
+            raise SystemExit(f"{what}: the code compiled with line tables differs from the code without; the "
+                             "profile would not be of the production code")
+        state["checks"].append(f"{what}: its code section ({len(code):,} bytes) is byte for byte that of the same "
+                               "compile without line tables.")
+    return obj
 
 
 def measure(a, work: Path) -> dict:
@@ -868,25 +843,16 @@ def measure(a, work: Path) -> dict:
         shutil.rmtree(cache)
     cpu = valgrind_cpu()
     state = {"cpu": cpu, "passes": a.passes, "checks": [], "perf": {}}
-    obj = work / "counted.o"
-    print(f"compiling with line tables for {cpu[0]} ...", flush=True)
-    code = code_section(compile_object("compile", work / "cache", obj, cpu))
-    if not a.no_check:
-        print("compiling without them ...", flush=True)
-        state["checks"].append(check_same_code(code, work / "cache-plain", work / "plain.o", cpu, "The build counted"))
+    obj = build(a, state, work, "counted", cpu, "The build counted")
     print("counting under callgrind ...", flush=True)
-    state["collected"], (state["funcs"], state["steps"]) = run_callgrind(work / "cache", obj, a.passes,
+    state["collected"], (state["funcs"], state["steps"]) = run_callgrind(work / "cache-counted", obj, a.passes,
                                                                          work / "callgrind.out", cpu)
     if a.perf:
         print(f"sampling it with perf for {a.perf:g} s ...", flush=True)
-        state["perf"]["counted build"] = run_perf(work / "cache", obj, a.perf, work, cpu)[:3]
-        print("compiling the native build with line tables ...", flush=True)
-        code = code_section(compile_object("compile", work / "cache-native", work / "native.o", None))
-        if not a.no_check:
-            state["checks"].append(check_same_code(code, work / "cache-native-plain", work / "native-plain.o", None,
-                                                   "The native build, which perf samples"))
+        state["perf"]["counted build"] = run_perf(work / "cache-counted", obj, a.perf, work, cpu)[:3]
+        native = build(a, state, work, "native", None, "The native build, which perf samples")
         print(f"sampling it with perf for {a.perf:g} s ...", flush=True)
-        state["perf"]["native build"] = run_perf(work / "cache-native", work / "native.o", a.perf, work, None)[:3]
+        state["perf"]["native build"] = run_perf(work / "cache-native", native, a.perf, work, None)[:3]
     (work / "state.json").write_text(json.dumps(state))
     return state
 
