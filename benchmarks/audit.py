@@ -1,24 +1,19 @@
-"""Whole-table audit: a spec run at the default setting and at a tighter one, every row compared.
+"""Are whole tables converged? A spec run at the default setting and at a tighter one, every row compared.
 
     python benchmarks/audit.py SPEC [SPEC ...] [--step-factor 0.398] [--jobs N] [--worst 10]
-                               [--page results/audit.md --notes benchmarks/audit_notes.md]
+                               [--page results/audit.md --notes benchmarks/audit_notes.md] [--reuse | --rerun]
 
-Each spec is run twice through the public API (`fencesweep.grid`, its own verification off):
-as written, and with `params: {step_factor: F}` added (F = 0.398: the local error tolerance
-TOL x F^5 is 1/100 of the default's, kernel/numerics.py). The two tables are compared row by
-row in the columns below, as relative differences |tight - default| / max(|tight|, floor)
-with the floors of COLUMNS; the outcomes must be equal on every row, and for an envelope
-study the feasible verdict of every design point (its points table). It prints, per column,
-the rows over 1e-3 and over 1e-2 and the largest difference, then the worst rows with their
-parameters, and with `--page` writes the same as a Markdown section per spec (the page is
-rewritten whole from the sections of this call), after the text of `--notes` (the causes
-traced, written by hand: a cause is read from a row's trajectory, not from its numbers).
+Each spec runs twice through `fencesweep.grid` (its own verification off): as written, and with
+`params: {step_factor: F}` (F = 0.398: the local error tolerance TOL x F^5 is 1/100 of the default's).
+The two tables are compared row by row in COLUMNS, as |tight - default| / max(|tight|, floor); the
+outcomes must be equal on every row, and for an envelope study every design point's feasible verdict.
+Printed per column: the rows over 1e-3 and 1e-2 and the largest difference, then the worst rows with
+their parameters; `--page` writes the same as a section per spec (the page rewritten whole from this
+call's sections), after the text of `--notes` (the causes traced by hand, from the rows' trajectories).
 
-The two tables of each spec are kept in .fencesweep-audit/ (git-ignored), so that a row can be
-looked at again; `--reuse` compares the kept tables without running them again, and `--rerun`
-runs again, with this tree, only the rows of the kept tables that were over the bound (at both
-settings, one scene at a time): a quick check of a fix on the rows it is meant for, not an audit
-(a row that was within the bound and no longer is goes unseen).
+The tables are kept in .fencesweep-audit/ (git-ignored): `--reuse` compares the kept tables again;
+`--rerun` runs again, with this tree, only the kept tables' rows over the bound (at both settings, one
+scene at a time): a quick check of a fix on the rows it is meant for, not an audit.
 """
 from __future__ import annotations
 

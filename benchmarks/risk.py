@@ -2,27 +2,20 @@
 
     python benchmarks/risk.py [--jobs 1] [--spec sweeps/risk.yaml] [--events FILE.npz]   -> results/risk.md
 
-1. The sequential study: `fencesweep.risk(spec)` into a temporary folder (its cycles, wall time,
-   decisions).
-2. The fixed runs: every element and operating point runs the same parcels (the same seeded
-   draws, samples 0 .. cap - 1) through the same machinery (study/risk/run.py Rounds); whether each
-   cycle broke some constraint is kept (`--events FILE.npz` keeps it in FILE and reuses it: the
-   events do not depend on p_max or the plan, only on the parcels, the elements and the limits).
-3. From those events, for the spec's p_max and for others around it:
-   * the sequential rule replayed (sequential.run_rounds on the stored events): at the spec's
-     p_max its decisions and stopping sizes must equal the study's, a check that the study counted
-     what the fixed runs count; and the rule it replaced (looks at 80, 160, ..., the cap, alpha / K
-     at each), on the same events, side by side;
-   * a fixed sample of n per element, decided at one look with a Clopper-Pearson interval at the
-     spec's confidence (no union bound: one look needs none, which favours it): the smallest n
-     (any whole number) whose decisions equal the sequential stop's on every element the
-     sequential stop decided, except those where even the cap's fixed sample decides otherwise
-     (sequential.fixed_size_for). That n is known only in hindsight: a fixed design would have to
-     guess it, so this is the fixed sample at its best;
-   * the least any honest rule could spend on these parcels (sequential.least_sizes: each element
-     stopped at the first n where one look at the spec's confidence reaches its decision), which
-     bounds what any sequential rule can save against that fixed sample.
-Reported: cycles of each, their ratios, and the cap's (every element at the cap) for scale.
+1. The sequential study: `fencesweep.risk(spec)` into a temporary folder (cycles, wall time, decisions).
+2. The fixed runs: every element and operating point runs the same parcels (the same seeded draws,
+   samples 0 .. cap - 1) through the same machinery (study/risk/run.py Rounds), keeping whether each
+   cycle broke some constraint (`--events FILE.npz` keeps them and reuses them: they depend only on the
+   parcels, the elements and the limits, not on p_max or the plan).
+3. From those events, for the spec's p_max and others around it: the sequential rule replayed
+   (sequential.run_rounds; at the spec's p_max its decisions and sizes must equal the study's) beside the
+   rule it replaced (looks at 80, 160, ..., the cap, alpha / K at each); the fixed sample at its best, the
+   smallest n whose one look (Clopper-Pearson at the spec's confidence, no union bound) decides every
+   element the sequential stop decided as it did, except where even the cap's fixed sample decides
+   otherwise (sequential.fixed_size_for: known only in hindsight); and the least any honest rule spends
+   (sequential.least_sizes: each element stopped at the first n where one look reaches its decision),
+   which bounds what any sequential rule can save against that fixed sample.
+Reported: the cycles of each, their ratios, and the cap's (every element at the cap) for scale.
 """
 from __future__ import annotations
 
