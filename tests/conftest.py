@@ -2,13 +2,22 @@
 
 tests/ is on the tests' path (pytest's `pythonpath` setting in pyproject.toml): the independent
 reference (`reference`, tests/reference/) and `helpers` (tests/helpers.py: the stand-in for the
-engine and the small specs, which a test module also needs at import time or in another process)
-import from there; the fixtures below give helpers' engine and spec.
+engine, the small specs and the kernels' first runs, which a test module also needs at import time
+or in another process) import from there; the fixtures below give helpers' engine, spec and first
+runs.
 """
+import contextlib
+import json
 import math
+import os
 
 import pytest
-from helpers import SWEEP_SPEC, fake_engine, write_spec
+from helpers import SWEEP_SPEC, fake_engine, first_runs, write_spec
+
+try:
+    import fcntl
+except ImportError:  # not POSIX: each xdist worker runs its own
+    fcntl = None
 
 
 @pytest.fixture
@@ -25,6 +34,39 @@ def faked_engine(monkeypatch):
 def sweep_spec_file(tmp_path):
     """helpers.SWEEP_SPEC written to tmp_path / "s.yaml"; its path."""
     return write_spec(tmp_path, SWEEP_SPEC, "s.yaml")
+
+
+@contextlib.contextmanager
+def _held(path):
+    """An exclusive lock on the file `path` while the block runs (none where fcntl is missing)."""
+    with open(path, "w") as fh:
+        if fcntl is not None:
+            fcntl.flock(fh, fcntl.LOCK_EX)
+        yield
+
+
+def once_per_session(tmp_path_factory, name: str, compute):
+    """compute(folder)'s JSON value, computed once per test session even on several xdist workers:
+    the first worker to ask computes it under a lock in the session's shared temporary directory
+    and keeps it there; a worker that asks later (or while it runs) reads it."""
+    root = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        root = root.parent  # the session's directory, above each worker's own
+    done = root / f"{name}.json"
+    with _held(root / f"{name}.lock"):
+        if not done.exists():
+            folder = root / name
+            folder.mkdir(exist_ok=True)
+            done.write_text(json.dumps(compute(folder)))
+        return json.loads(done.read_text())
+
+
+@pytest.fixture(scope="session", name="first_runs")
+def _first_runs(tmp_path_factory):
+    """helpers.first_runs: the kernels' first runs on an empty cache, each a new process that
+    compiles them (two started at once, then one alone), and the same runs on this checkout's
+    cache; run once per session for tests/test_jit.py and tests/test_compile_isolation.py."""
+    return once_per_session(tmp_path_factory, "first_runs", first_runs)
 
 
 def tip_depth(row, vals):

@@ -1,13 +1,18 @@
-"""What several test files share: the stand-in for the engine that the sweep tests run, and the
-small specs they sweep. Plain functions and constants, so that a test module can use them at
-import time (a default argument) and ship the engine to another process by value (cloudpickle);
-conftest.py gives them as fixtures too (`faked_engine`, `sweep_spec_file`).
+"""What several test files share: the stand-in for the engine that the sweep tests run, the
+small specs they sweep, and the first runs on an empty cache that tests/test_jit.py and
+tests/test_compile_isolation.py both read (`first_runs`). Plain functions and constants, so that
+a test module can use them at import time (a default argument) and ship the engine to another
+process by value (cloudpickle); conftest.py gives them as fixtures too (`faked_engine`,
+`sweep_spec_file`, `first_runs`).
 
 Importable as `helpers` through pyproject.toml's pytest pythonpath (tests/).
 """
 from __future__ import annotations
 
+import json
 import math
+import os
+import subprocess
 import sys
 import textwrap
 from pathlib import Path
@@ -118,6 +123,144 @@ def fake_engine(vals, trajectory=False, drift=0.0):
     if vals["step_factor"] != 1.0:
         out["peak_force"] *= 1 + drift
     return out, None
+
+
+ROOT = Path(__file__).resolve().parent.parent
+
+#: A new process's first run, with the argument "cold": it imports fencesweep (first, as a
+#: user's script would), runs every scene variant (on an empty cache: the kernels compile) and
+#: reports what it compiled (tests/test_jit.py); with "plain" it never imports fencesweep. Either
+#: way it then compiles a user's own functions and reports their IR, machine code and results,
+#: and what Numba's classes and llvmlite's lock held after the import and after the runs
+#: (tests/test_compile_isolation.py). Prints one JSON line.
+FIRST_RUN = textwrap.dedent("""
+    import gc, json, sys
+    cold = sys.argv[1] == "cold"
+    if cold:
+        import fencesweep
+    import numpy as np
+    import llvmlite.binding as llvm
+    from numba import float64, njit
+    from numba.core import caching
+    from numba.core.codegen import CPUCodeLibrary, JITCPUCodegen
+    from numba.core.dispatcher import Dispatcher
+
+    ATTRS = [(CPUCodeLibrary, "_optimize_functions"), (CPUCodeLibrary, "_optimize_final_module"),
+             (CPUCodeLibrary, "_finalize_final_module"), (CPUCodeLibrary, "finalize"),
+             (JITCPUCodegen, "set_env"), (JITCPUCodegen, "create_library")]
+
+    def numba_state():
+        return {"attrs": [getattr(c, n) for c, n in ATTRS],
+                "callbacks": [f for pair in llvm.ffi.lib._lock._cblist for f in pair],
+                "locators": list(caching.CacheImpl._locator_classes)}
+
+    state = numba_state()
+    report, same = {}, None
+    if cold:
+        from fencesweep.kernel import jit
+
+        def dispatchers():
+            return [o for o in gc.get_objects()
+                    if isinstance(o, Dispatcher) and o.py_func.__module__.startswith("fencesweep")]
+
+        def compiled():
+            return sum(len(d.signatures) for d in dispatchers())
+
+        runs = [dict(case="small_far"), dict(case="long_near", drive="rigid"), dict(case="small_far", drive="free"),
+                dict(case="small_far", contact_law="linear"), dict(case="long_near", integrator="rk4", step_factor=8.0),
+                dict(case="small_far", profile="harmonic")]
+        res = [fencesweep.simulate("cycle", **r)["peak_force"] for r in runs]
+        res.append(fencesweep.simulate("stream", case="small_far", n_cycles=2, period=1.5)["worst_overload"])
+        cycle_compiled = compiled()  # before the impact scenes, which the other process may be compiling
+        res += [fencesweep.simulate("impact", drive=d)["peak_force"] for d in ("rigid", "flexible", "free")]
+        res.append(fencesweep.simulate("freefall")["peak_force"])
+        from fencesweep.kernel import share
+        from fencesweep.model.simulate import CYCLE_PLAN
+        disps = dispatchers()
+        steps = share.load_plan(CYCLE_PLAN)
+        plan = [share.signature(args) in d.signatures for d, args in [steps.entry, *steps.kernels]]
+        from fencesweep.model import drive
+        report.update({"results": res, "most": max(len(d.signatures) for d in disps),
+                       "compiled": compiled(), "plan": plan, "cycle_compiled": cycle_compiled,
+                       "loaded": sum(sum(d._cache_hits.values()) for d in disps if isinstance(d, jit.KernelDispatcher)),
+                       "rocker_loaded": sum(drive.fill_rocker_table._cache_hits.values())})
+        after = numba_state()
+        same = {k: len(v) == len(after[k]) and all(a is b for a, b in zip(v, after[k])) for k, v in state.items()}
+
+    @njit
+    def sum_sin(x):
+        s = 0.0
+        for v in x:
+            s += np.sin(v)
+        return s
+
+    @njit
+    def convolve(a, b):
+        return np.convolve(a, b)
+
+    x = np.linspace(0.0, 3.0, 101)
+    user = {"numba": {"attrs": [[o.__module__, o.__qualname__, hasattr(o, "__wrapped__")] for o in state["attrs"]],
+                      "callbacks": [f.__module__ for f in state["callbacks"]],
+                      "locators": [c.__module__ for c in state["locators"]]},
+            "same after a run": same}
+    for f, args in ((sum_sin, (x,)), (convolve, (x, x[:7]))):
+        sig = tuple(float64[::1] for _ in args)
+        f.compile(sig)
+        user[f.__name__] = {"llvm": f.inspect_llvm(sig), "asm": f.inspect_asm(sig),
+                            "result": np.asarray(f(*args)).tolist()}
+    report["user"] = user
+    print(json.dumps(report))
+""")
+
+
+def _first_run_env(cache_dir: Path | None, **more) -> dict:
+    """The environment of a FIRST_RUN process: no NUMBA_ settings but the cache directory (an empty
+    one: the kernels compile in the process), one string hash for every process (Numba names a
+    constant string by its hash: the user's functions compare across processes)."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith("NUMBA_")}
+    if cache_dir is not None:
+        env["NUMBA_CACHE_DIR"] = str(cache_dir)
+    return {**env, "PYTHONHASHSEED": "0", **more}
+
+
+def _finished(proc_out: tuple, returncode: int) -> dict:
+    """{"rc", "stderr", "report": the JSON line printed (None if none)} of a FIRST_RUN process."""
+    out, err = proc_out
+    lines = out.strip().splitlines()
+    report = None
+    if returncode == 0 and lines:
+        report = json.loads(lines[-1])
+    return {"rc": returncode, "stderr": err, "report": report}
+
+
+def first_run(mode: str, cache_dir: Path | None, **env) -> dict:
+    """FIRST_RUN in a new process (mode "cold" or "plain"); `_finished`'s dict."""
+    r = subprocess.run([sys.executable, "-c", FIRST_RUN, mode], cwd=ROOT, env=_first_run_env(cache_dir, **env),
+                       capture_output=True, text=True, timeout=600)
+    return _finished((r.stdout, r.stderr), r.returncode)
+
+
+def first_runs(root: Path) -> dict:
+    """The first runs that tests/test_jit.py and tests/test_compile_isolation.py read, each
+    compiling the kernels once in a new process on an empty cache:
+
+    * "pair": two processes started at once on one empty cache (root/pair), the compile helper
+      on where it can be (kernel/share.py): one compiles, the other waits and loads;
+    * "here": the same runs on this checkout's cache (compiled already: nothing compiles);
+    * "alone": one process on another empty cache (root/alone), the helper off: every kernel
+      compiled in that process;
+    * "cache": root/pair, the pair's cache directory.
+    """
+    from fencesweep.kernel import share
+
+    env = _first_run_env(root / "pair")
+    procs = [subprocess.Popen([sys.executable, "-c", FIRST_RUN, "cold"], cwd=ROOT, env=env, stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True) for _ in range(2)]
+    pair = [_finished(p.communicate(timeout=600), p.returncode) for p in procs]
+    here = subprocess.run([sys.executable, "-c", FIRST_RUN, "cold"], cwd=ROOT, capture_output=True, text=True,
+                          timeout=600)
+    return {"pair": pair, "here": _finished((here.stdout, here.stderr), here.returncode),
+            "alone": first_run("cold", root / "alone", **{share.HELPER_ENV: "0"}), "cache": str(root / "pair")}
 
 
 # the engine goes to loky workers and to test subprocesses pickled by value: they need not

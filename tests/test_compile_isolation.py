@@ -2,81 +2,24 @@
 (fencesweep/kernel/jit.py): a user's own @njit function compiles to the same optimised LLVM IR
 and machine code in a process that has loaded fencesweep and compiled its kernels as in one
 that never imported it, and Numba's classes hold their own methods, its LLVM-lock callbacks
-and cache locators are its own, after the import and after a kernel run."""
-import json
-import os
+and cache locators are its own, after the import and after a kernel run.
+
+The processes with fencesweep are tests/test_jit.py's first runs on an empty cache
+(helpers.FIRST_RUN, run once per session through conftest.py's `first_runs`): the kernels compile
+in them, with the compile helper and without it, before the user's functions do."""
 import re
-import subprocess
-import sys
 import threading
 import time
-from pathlib import Path
 
 import pytest
 import llvmlite.binding as llvm
 from numba.core import caching
 from numba.core.codegen import CPUCodeLibrary, JITCodeLibrary, JITCPUCodegen
 from numba.core.compiler_lock import global_compiler_lock
+from helpers import first_run
 
 from fencesweep.kernel import jit
 from fencesweep.model import simulate as api
-
-ROOT = Path(__file__).resolve().parent.parent
-
-#: a user's own compiled functions, compiled in a new process; with the argument "fencesweep"
-#: after loading fencesweep (first, as a user's script would) and running a cycle on an empty
-#: cache, so that its kernels compile in that process. Prints their IR, machine code and
-#: results, and what Numba's classes and llvmlite's lock held after the import and after the run.
-USER = r"""
-import json, sys
-with_fencesweep = sys.argv[1] == "fencesweep"
-if with_fencesweep:
-    import fencesweep
-import numpy as np
-import llvmlite.binding as llvm
-from numba import float64, njit
-from numba.core import caching
-from numba.core.codegen import CPUCodeLibrary, JITCPUCodegen
-
-ATTRS = [(CPUCodeLibrary, "_optimize_functions"), (CPUCodeLibrary, "_optimize_final_module"),
-         (CPUCodeLibrary, "_finalize_final_module"), (CPUCodeLibrary, "finalize"),
-         (JITCPUCodegen, "set_env"), (JITCPUCodegen, "create_library")]
-
-def numba_state():
-    return {"attrs": [getattr(c, n) for c, n in ATTRS],
-            "callbacks": [f for pair in llvm.ffi.lib._lock._cblist for f in pair],
-            "locators": list(caching.CacheImpl._locator_classes)}
-
-state = numba_state()
-same = None
-if with_fencesweep:
-    fencesweep.simulate(case="small_far")
-    after = numba_state()
-    same = {k: len(v) == len(after[k]) and all(a is b for a, b in zip(v, after[k])) for k, v in state.items()}
-
-@njit
-def sum_sin(x):
-    s = 0.0
-    for v in x:
-        s += np.sin(v)
-    return s
-
-@njit
-def convolve(a, b):
-    return np.convolve(a, b)
-
-x = np.linspace(0.0, 3.0, 101)
-out = {"numba": {"attrs": [[o.__module__, o.__qualname__, hasattr(o, "__wrapped__")] for o in state["attrs"]],
-                 "callbacks": [f.__module__ for f in state["callbacks"]],
-                 "locators": [c.__module__ for c in state["locators"]]},
-       "same after a run": same}
-for f, args in ((sum_sin, (x,)), (convolve, (x, x[:7]))):
-    sig = tuple(float64[::1] for _ in args)
-    f.compile(sig)
-    out[f.__name__] = {"llvm": f.inspect_llvm(sig), "asm": f.inspect_asm(sig),
-                       "result": np.asarray(f(*args)).tolist()}
-print(json.dumps(out))
-"""
 
 
 def _normalised(code: str) -> str:
@@ -94,38 +37,39 @@ def _normalised(code: str) -> str:
 
 
 @pytest.fixture(scope="module")
-def user_code(tmp_path_factory):
-    """{"plain": the user's functions in a process without fencesweep, "fencesweep": with it}."""
-    out = {}
-    for mode in ("plain", "fencesweep"):
-        env = {k: v for k, v in os.environ.items() if not k.startswith("NUMBA_")}
-        # an empty cache (the kernels compile in the process), and one string hash for both
-        # processes (Numba names a constant string by its hash)
-        env.update(NUMBA_CACHE_DIR=str(tmp_path_factory.mktemp(mode)), PYTHONHASHSEED="0")
-        r = subprocess.run([sys.executable, "-c", USER, mode], cwd=ROOT, env=env, capture_output=True,
-                           text=True, timeout=600)
-        assert r.returncode == 0, r.stderr[-3000:]
-        out[mode] = json.loads(r.stdout.strip().splitlines()[-1])
-    assert "compiling the cycle kernels" in r.stderr  # the kernels did compile in that process
-    return out
+def user_code(first_runs):
+    """{"plain": the user's functions in a process without fencesweep, "fencesweep": [the same in
+    each process that loaded fencesweep and ran every scene on an empty cache: the two started at
+    once (one compiling, the other loading what it compiled) and the one that compiled alone]}
+    (helpers.FIRST_RUN; the cold processes are tests/test_jit.py's, run once per session)."""
+    plain = first_run("plain", None)
+    assert plain["rc"] == 0, plain["stderr"][-3000:]
+    cold = [*first_runs["pair"], first_runs["alone"]]
+    assert [r["rc"] for r in cold] == [0, 0, 0], [r["stderr"][-3000:] for r in cold]
+    # the kernels did compile in those processes: in one of the two, and in the one alone
+    assert ["compiling the cycle kernels" in r["stderr"] for r in cold].count(True) == 2
+    return {"plain": plain["report"]["user"], "fencesweep": [r["report"]["user"] for r in cold]}
 
 
 @pytest.mark.parametrize("name", ["sum_sin", "convolve"])
 def test_a_users_function_compiles_the_same_with_fencesweep_loaded(user_code, name):
-    plain, with_fs = user_code["plain"][name], user_code["fencesweep"][name]
-    assert _normalised(with_fs["llvm"]) == _normalised(plain["llvm"])
-    assert _normalised(with_fs["asm"]) == _normalised(plain["asm"])
-    assert with_fs["result"] == plain["result"]
+    plain = user_code["plain"][name]
+    for with_fs in (run[name] for run in user_code["fencesweep"]):
+        assert _normalised(with_fs["llvm"]) == _normalised(plain["llvm"])
+        assert _normalised(with_fs["asm"]) == _normalised(plain["asm"])
+        assert with_fs["result"] == plain["result"]
 
 
 def test_numbas_classes_hold_their_own_methods_after_import_and_after_a_kernel_run(user_code):
-    plain, with_fs = user_code["plain"]["numba"], user_code["fencesweep"]["numba"]
-    assert with_fs == plain  # after `import fencesweep`: Numba's own methods, callbacks and cache locators
-    assert all(m == "numba.core.codegen" and not wrapped for m, _, wrapped in with_fs["attrs"])
-    assert "numba.core.base" in with_fs["callbacks"]  # Numba's LLVM-lock events
-    assert not any(m.startswith("fencesweep") for m in with_fs["locators"])
-    # the very same objects after a cycle compiled and ran
-    assert user_code["fencesweep"]["same after a run"] == {"attrs": True, "callbacks": True, "locators": True}
+    plain = user_code["plain"]["numba"]
+    for run in user_code["fencesweep"]:
+        with_fs = run["numba"]
+        assert with_fs == plain  # after `import fencesweep`: Numba's own methods, callbacks and cache locators
+        assert all(m == "numba.core.codegen" and not wrapped for m, _, wrapped in with_fs["attrs"])
+        assert "numba.core.base" in with_fs["callbacks"]  # Numba's LLVM-lock events
+        assert not any(m.startswith("fencesweep") for m in with_fs["locators"])
+        # the very same objects after every scene compiled (or loaded) and ran
+        assert run["same after a run"] == {"attrs": True, "callbacks": True, "locators": True}
 
 
 def _callbacks():

@@ -144,59 +144,22 @@ def test_the_hash_covers_every_module_a_kernel_is_compiled_from():
     assert not any(name.startswith(("study/", "report/")) or "/" not in name for name in hashed)
 
 
-#: a process that runs every scene variant on an empty cache and reports what it compiled
-COLD_RUN = textwrap.dedent("""
-    import gc, json, sys
-    from numba.core.dispatcher import Dispatcher
-    import fencesweep
-    from fencesweep.kernel import jit
-
-    def dispatchers():
-        return [o for o in gc.get_objects() if isinstance(o, Dispatcher) and o.py_func.__module__.startswith("fencesweep")]
-
-    def compiled():
-        return sum(len(d.signatures) for d in dispatchers())
-
-    runs = [dict(case="small_far"), dict(case="long_near", drive="rigid"), dict(case="small_far", drive="free"),
-            dict(case="small_far", contact_law="linear"), dict(case="long_near", integrator="rk4", step_factor=8.0),
-            dict(case="small_far", profile="harmonic")]
-    res = [fencesweep.simulate("cycle", **r)["peak_force"] for r in runs]
-    res.append(fencesweep.simulate("stream", case="small_far", n_cycles=2, period=1.5)["worst_overload"])
-    cycle_compiled = compiled()  # before the impact scenes, which the other process may be compiling
-    res += [fencesweep.simulate("impact", drive=d)["peak_force"] for d in ("rigid", "flexible", "free")]
-    res.append(fencesweep.simulate("freefall")["peak_force"])
-    from fencesweep.kernel import share
-    from fencesweep.model.simulate import CYCLE_PLAN
-    disps = dispatchers()
-    steps = share.load_plan(CYCLE_PLAN)
-    plan = [share.signature(args) in d.signatures for d, args in [steps.entry, *steps.kernels]]
-    from fencesweep.model import drive
-    print(json.dumps({"results": res, "most": max(len(d.signatures) for d in disps),
-                      "compiled": compiled(), "plan": plan, "cycle_compiled": cycle_compiled,
-                      "loaded": sum(sum(d._cache_hits.values()) for d in disps if isinstance(d, jit.KernelDispatcher)),
-                      "rocker_loaded": sum(drive.fill_rocker_table._cache_hits.values())}))
-""")
-
-
-def test_two_processes_on_an_empty_cache_both_finish_and_every_function_compiles_once(tmp_path):
+def test_two_processes_on_an_empty_cache_both_finish_and_every_function_compiles_once(first_runs):
     """Two first runs started at once: one compiles (and says so) under the compile lock, the
-    other waits and loads the kernels; both give the in-process results."""
-    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)}
-    procs = [subprocess.Popen([sys.executable, "-c", COLD_RUN], env=env, stdout=subprocess.PIPE,
-                              stderr=subprocess.PIPE, text=True) for _ in range(2)]
-    outs = [p.communicate(timeout=600) for p in procs]
-    assert [p.returncode for p in procs] == [0, 0], [e[-2000:] for _, e in outs]
-    reports = [json.loads(o.strip().splitlines()[-1]) for o, _ in outs]
-    here = json.loads(subprocess.run([sys.executable, "-c", COLD_RUN], capture_output=True, text=True,
-                                     check=True).stdout.strip().splitlines()[-1])["results"]
-    assert reports[0]["results"] == reports[1]["results"] == here
-    said = ["compiling the cycle kernels" in e for _, e in outs]
+    other waits and loads the kernels; both give the in-process results. (The processes:
+    helpers.first_runs, run once per session; tests/test_compile_isolation.py reads them too.)"""
+    pair, here, alone = first_runs["pair"], first_runs["here"], first_runs["alone"]
+    assert [p["rc"] for p in pair] == [0, 0], [p["stderr"][-2000:] for p in pair]
+    assert here["rc"] == 0, here["stderr"][-2000:]
+    reports = [p["report"] for p in pair]
+    assert reports[0]["results"] == reports[1]["results"] == here["report"]["results"]
+    said = ["compiling the cycle kernels" in p["stderr"] for p in pair]
     assert sorted(said) == [False, True]  # one compiled and said so; the other loaded
     cold = reports[said.index(True)]
     assert cold["most"] == 1 and cold["compiled"] > 80  # every function compiled exactly once
     assert reports[said.index(False)]["cycle_compiled"] <= 3  # the cycle's entry points, loaded
     # the impact kernels, too, were compiled by one of the two (whichever got there first)
-    assert sorted("compiling the impact kernels" in e for _, e in outs) == [False, True]
+    assert sorted("compiling the impact kernels" in p["stderr"] for p in pair) == [False, True]
     # the compile plan's example arguments have the types run_cycles compiles its functions for,
     # and the helper compiled some of them (kernel/share.py); its directory is gone
     assert cold["plan"] and all(cold["plan"])
@@ -204,14 +167,12 @@ def test_two_processes_on_an_empty_cache_both_finish_and_every_function_compiles
     # the helper's prelude compiled the crank-rocker table's entry point, which this process,
     # having waited for the prelude after its own compile, loaded instead of compiling it again
     assert cold["rocker_loaded"] == 1
-    assert list(tmp_path.glob("fencesweep-*/share-*")) == []
-    # the same results with the compile all in one process
-    env[share.HELPER_ENV] = "0"
-    env["NUMBA_CACHE_DIR"] = str(tmp_path / "alone")
-    alone = json.loads(subprocess.run([sys.executable, "-c", COLD_RUN], env=env, capture_output=True, text=True,
-                                      check=True).stdout.strip().splitlines()[-1])
-    assert alone["results"] == here
-    assert alone["loaded"] == 0 and alone["most"] == 1 and alone["rocker_loaded"] == 0
+    assert list(Path(first_runs["cache"]).glob("fencesweep-*/share-*")) == []
+    # the same results with the compile all in one process (the helper off, another empty cache)
+    assert alone["rc"] == 0, alone["stderr"][-2000:]
+    assert "compiling the cycle kernels" in alone["stderr"]
+    assert alone["report"]["results"] == here["report"]["results"]
+    assert alone["report"]["loaded"] == 0 and alone["report"]["most"] == 1 and alone["report"]["rocker_loaded"] == 0
 
 
 def test_a_warm_process_says_nothing(capfd):
