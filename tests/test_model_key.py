@@ -11,6 +11,7 @@ draws a parameter set and a second one that differs in that parameter alone, and
 * whenever the keys are equal, the engine's results are equal too: the engine itself is
   the judge of what a model reads, so a parameter missing from USES is caught as well.
 """
+import functools
 import math
 
 import pytest
@@ -38,8 +39,10 @@ def test_ranges_cover_every_parameter():
     assert numeric - {"e"} == set(RANGES)
 
 
+@functools.cache
 def value(name: str):
-    """A strategy for one parameter's value (None = derived, for the derived ones)."""
+    """A strategy for one parameter's value (None = derived, for the derived ones); one object per
+    parameter, made once (a new strategy per draw was half the file's time)."""
     p = P.BY_NAME[name]
     if p.kind == "choice":
         return st.sampled_from(p.choices)
@@ -49,6 +52,10 @@ def value(name: str):
         return st.one_of(st.none(), st.integers(*RANGES[name]))
     drawn = st.floats(*RANGES[name], allow_nan=False)
     return st.one_of(st.none(), drawn) if p.derived else drawn
+
+
+#: a value of every parameter, drawn in one draw (each value as `value` draws it)
+EVERY_PARAMETER = st.fixed_dictionaries({n: value(n) for n in P.NAMES})
 
 
 def uses(scene: str, vals: dict, given: dict) -> set:
@@ -90,7 +97,7 @@ def same(a: dict, b: dict) -> bool:
           suppress_health_check=[HealthCheck.filter_too_much, HealthCheck.too_slow])
 @given(data=st.data())
 def test_sets_that_differ_in_a_used_parameter_never_share_a_key(scene, name, data):
-    given = {n: data.draw(value(n), label=n) for n in P.NAMES}
+    given = data.draw(EVERY_PARAMETER, label="given")
     if scene in ("cycle", "stream") and given["integrator"] == "rk4":
         given["t_c"] = given["t_max"] = 1.0  # a fixed step of 1e-4 s over 1 s: 1e4 steps at most
     other = dict(given, **{name: data.draw(value(name), label=f"{name} (other)")})
