@@ -12,7 +12,7 @@ from fencesweep.kernel.jit import python_callable
 from fencesweep.model import drive as D
 from fencesweep.model.params import relative_damping
 from fencesweep.model.scenes.cycle import rhs as R
-from fencesweep.model.scenes.cycle.layout import FM_KELVIN, IW_LOAD, IW_MODE, N_AUX, N_IW, N_STATE
+from fencesweep.model.scenes.cycle.layout import FM_KELVIN, IW_LOAD, IW_MODE, N_AUX_ALL, N_IW, N_STATE
 from fencesweep.model.prepare import prepare
 
 drive_angle, rhs = python_callable(D.drive_angle), python_callable(R.rhs)
@@ -73,7 +73,7 @@ def _rhs_fun(p):
     iw[:4] = 1
     iw[IW_MODE] = FM_KELVIN
     iw[IW_LOAD] = 1
-    dy, aux = np.zeros(N_STATE), np.zeros(N_AUX)
+    dy, aux = np.zeros(N_STATE), np.zeros(N_AUX_ALL)
 
     def f(t, y):
         rhs(t, y, p, iw, dy, aux)

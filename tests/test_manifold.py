@@ -50,7 +50,7 @@ def fence_force(D, x, theta, L=L, A=A):
         tag = classify(0.0, y, p, iw, codes, gaps, rates, tags)
         iw[CL.IW_CODE:CL.IW_CODE + N_SLOTS] = codes
         iw[CL.IW_EDGE] = tag
-    dy, aux = np.zeros(CL.N_STATE), np.zeros(CL.N_AUX)
+    dy, aux = np.zeros(CL.N_STATE), np.zeros(CL.N_AUX_ALL)
     rhs(0.0, y, p, iw, dy, aux)
     pushing = int(np.sum(codes[[0, 1, 2, 3, 8, 9]] != APART))
     return aux[CL.AX_NF], pushing

@@ -73,6 +73,15 @@ RELEASE_TRIES = 4
 #: controller grows the steps by up to 10x a step, so the start costs ~4 steps per onset.
 ONSET_STEP = 1e-6
 
+#: The right-hand side takes the sine and cosine of the fence's and the load's angle from those of
+#: the last angle it evaluated exactly (kernel/trig.py cos_sin_near), by the angle-addition
+#: formula, while the angle is within TRIG_NEAR [rad] of it: within a step the stages' angles
+#: differ by far less, and libm's sincos costs ~100 instructions where the formula costs ~20.
+#: At 1/16 rad the series (to d^8 and d^9) are exact to 1e-18, and the result to an ulp or two
+#: of libm's (each angle evaluated exactly again once it moved on by TRIG_NEAR, so errors
+#: do not accumulate).
+TRIG_NEAR = 1.0 / 16.0
+
 #: Contact hysteresis, relative to the fence length (gaps) and to the free-fall force (forces):
 #: a touching contact is released only when its gap exceeds it, and switches between pushing
 #: and clipped only when its Kelvin force is beyond it. A load resting at zero depth or zero

@@ -140,7 +140,8 @@ def error_norm(K, h, y0, y1, atol, rtol, n_ctrl):
     for m in range(n_ctrl):
         e = 0.0
         for k in range(N_STAGES):
-            e += DP_E[k] * K[k, m]
+            if k != 1:  # DP_E[1] = 0: the second stage enters neither solution
+                e += DP_E[k] * K[k, m]
         r = h * e / (atol[m] + rtol * max(abs(y0[m]), abs(y1[m])))
         acc += r * r
     return math.sqrt(acc / n_ctrl)
@@ -149,8 +150,14 @@ def error_norm(K, h, y0, y1, atol, rtol, n_ctrl):
 @kernel(inline=True)
 def dense_coeffs(method, K, h, y0, y1, Q, n):
     """Coefficients Q[0..3] of the step's continuous extension (module docstring)."""
+    dense_coeffs_of(method, K, h, y0, y1, Q, 0, n)
+
+
+@kernel(inline=True)
+def dense_coeffs_of(method, K, h, y0, y1, Q, m0, n):
+    """dense_coeffs for the components m0 <= m < n alone (each component's are its own)."""
     if method == METHOD_RK4:
-        for m in range(n):  # cubic Hermite of (y0, f0, y1, f1) in powers of theta
+        for m in range(m0, n):  # cubic Hermite of (y0, f0, y1, f1) in powers of theta
             d = y1[m] - y0[m]
             Q[0, m] = h * K[0, m]
             Q[1, m] = 3.0 * d - h * (2.0 * K[0, m] + K[6, m])
@@ -158,10 +165,11 @@ def dense_coeffs(method, K, h, y0, y1, Q, n):
             Q[3, m] = 0.0
         return
     for j in range(4):
-        for m in range(n):
+        for m in range(m0, n):
             acc = 0.0
             for k in range(N_STAGES):
-                acc += K[k, m] * DP_P[k][j]
+                if k != 1 and (j > 0 or k == 0):  # DP_P's zeros: the row of K[1], the column of Q[0] past K[0]
+                    acc += K[k, m] * DP_P[k][j]
             Q[j, m] = h * acc
 
 

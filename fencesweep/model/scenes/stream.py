@@ -29,13 +29,14 @@ from fencesweep.kernel import rk
 from fencesweep.kernel.driver import N_COUNT
 from fencesweep.kernel.jit import HEAP, bind, entry, kernel
 from fencesweep.kernel.rk import N_STAGES
+from fencesweep.kernel.trig import forget_angle
 from fencesweep.model import layout as Lp
 from fencesweep.model import results as Rs
 from fencesweep.model.scenes.contacts import N_SLOTS
 from fencesweep.model.scenes.cycle.books import (apply_contact_change, drop_load, finish, record, start,
                                                  swing_amplitude, sync_touch, time_out)
-from fencesweep.model.scenes.cycle.layout import (A_EXITED, A_QMAX, A_STATUS, A_T_EXIT, IW_EDGE, IW_MODE, IW_RIDE,
-                                                  N_ACC, N_AUX, N_DENSE, N_IW, N_Q, N_QV, N_RISING, N_STATE, N_TRAJ,
+from fencesweep.model.scenes.cycle.layout import (A_EXITED, A_QMAX, A_STATUS, A_T_EXIT, AX_DRIVE, AX_TRIG_AL, AX_TRIG_PHI, IW_EDGE, IW_MODE, IW_RIDE,
+                                                  N_ACC, N_AUX_ALL, N_DENSE, N_IW, N_Q, N_QV, N_RISING, N_STATE, N_TRAJ,
                                                   Q_NF, QV_0, Work)
 from fencesweep.model.scenes.cycle.peaks import quantities_from_aux
 from fencesweep.model.scenes.cycle.rhs import deflection, fence_state, rhs, step
@@ -59,6 +60,10 @@ def begin_cycle(p, w):
     (0, 0 for the first cycle; carried over, docs/model.md (14.3): books.start): the contacts it
     starts in, f(0, y), the tracked quantities' first values and the first trajectory row."""
     start(p, w)
+    for a in (w.aux, w.auxs):  # each cycle's sines, cosines and drive its own (kernel/trig.py, rhs.drive_once)
+        forget_angle(a, AX_TRIG_AL)
+        forget_angle(a, AX_TRIG_PHI)
+        a[AX_DRIVE] = math.nan
     w.iw[IW_EDGE] = classify(0.0, w.y, p, w.iw, w.codes1, w.g0, w.r0, w.tags1)
     apply_contact_change(0.0, w.y, p, w.iw, w.codes1, w.iw[IW_EDGE], w.acc)
     w.iw[IW_RIDE] = 0 if in_contact(w.iw) else 1
@@ -222,8 +227,8 @@ def cycles_with_work(p, loads, period, out, traj, row_starts, pk):
     f, i = F8, I8
     w = Work(MEM.local.array(N_STATE, f), MEM.local.array(N_STATE, f), MEM.local.array(N_STATE, f),
              MEM.local.array(N_STATE, f), MEM.local.array((N_STAGES, N_STATE), f),
-             MEM.local.array((N_DENSE, N_STATE), f), MEM.local.array(1, i), MEM.local.array(N_AUX, f),
-             MEM.local.array(N_AUX, f), MEM.local.array(N_IW, i), MEM.local.array(N_SLOTS, i),
+             MEM.local.array((N_DENSE, N_STATE), f), MEM.local.array(1, i), MEM.local.array(N_AUX_ALL, f),
+             MEM.local.array(N_AUX_ALL, f), MEM.local.array(N_IW, i), MEM.local.array(N_SLOTS, i),
              MEM.local.array(N_SLOTS, i), MEM.local.array(N_SLOTS, f), MEM.local.array(N_SLOTS, f),
              MEM.local.array(N_SLOTS, f), MEM.local.array(N_SLOTS, f), MEM.local.array((N_QV, N_Q), f),
              MEM.local.array(N_ACC, f), MEM.local.array(N_STATE, f), MEM.local.array(N_STATE, f),

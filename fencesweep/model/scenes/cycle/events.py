@@ -42,7 +42,12 @@ def neg_gap(ctx, theta):
 
 @kernel(inline=True)
 def outcome_hit(kind, y, p):
-    """Has outcome `kind` (0 scraped, 1 escaped) happened at state y (docs/model.md §9)?"""
+    """Has outcome `kind` (0 scraped, 1 escaped) happened at state y (docs/model.md §9)? Not
+    escaped while the centroid is at x_G <= l: opposite corners' offsets are exact negatives
+    (load.corner_offset), so one corner is at x <= x_G and min_j x_Gj - l > 0 cannot hold (9.2);
+    the corners' sines and cosines are then not needed."""
+    if kind == 1 and y[0] <= p[Lp.FL]:
+        return False
     m = outcome_margin(kind, y, p)
     return m >= 0.0 if kind == 0 else m > 0.0
 
@@ -129,12 +134,23 @@ def crossing_theta(p, w, t, h, k, tol):
 
 @kernel(inline=True)
 def ensure_dense(p, w, h):
-    """The step's dense-output coefficients w.Q[:4], formed the first time the step needs them
-    (w.qok[0] is 0 after every step taken): most steps have no event and no peak, and never
-    need them."""
+    """The step's dense-output coefficients w.Q[:4] of the first N_CTRL components (what events
+    and peaks read), formed the first time the step needs them (w.qok[0] is 0 after every step
+    taken, 1 with these, 2 with every component): most steps have no event and no peak, and
+    never need them."""
     if w.qok[0] == 0:
-        rk.dense_coeffs(int(p[Lp.METHOD]), w.K, h, w.y, w.y1, w.Q, N_STATE)
+        rk.dense_coeffs_of(int(p[Lp.METHOD]), w.K, h, w.y, w.y1, w.Q, 0, N_CTRL)
         w.qok[0] = 1
+
+
+@kernel(inline=True)
+def ensure_dense_all(p, w, h):
+    """ensure_dense and the other components' coefficients too (the energies): only the state
+    at an event reads them."""
+    ensure_dense(p, w, h)
+    if w.qok[0] == 1:
+        rk.dense_coeffs_of(int(p[Lp.METHOD]), w.K, h, w.y, w.y1, w.Q, N_CTRL, N_STATE)
+        w.qok[0] = 2
 
 
 @kernel()
@@ -280,6 +296,7 @@ def event_state(p, w, t, h, theta, kind):
     or, for releases only (at the event and at the step's end), from release_state. Returns
     (theta, the tip's edge)."""
     released = kind == 1 and releases(w.iw, w.codes1)
+    ensure_dense_all(p, w, h)
     rk.dense_eval(w.y, w.Q, theta, w.y1, N_STATE)
     edge1 = classify(t + theta * h, w.y1, p, w.iw, w.codes1, w.g1, w.r1, w.tags1)
     if released and releases(w.iw, w.codes1):

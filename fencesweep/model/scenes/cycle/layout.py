@@ -37,6 +37,10 @@ AX_NF, AX_NR, AX_TAU, AX_DMAX, AX_FX, AX_FY, AX_TQ, AX_PDISS, AX_PFRIC = 0, 1, 2
 # ... and the frame the contacts were evaluated in (frame_at's values; AX_FRAME 1 when set),
 # which classify reuses at the end of a step instead of computing it again
 AX_CA, AX_SA, AX_DAL, AX_CPHI, AX_SPHI, AX_FRAME, N_AUX = 9, 10, 11, 12, 13, 14, 15
+# ... and, after the N_AUX that each right-hand side clears, the last angles of the fence and the
+# load it took sines and cosines of exactly (kernel/trig.py cos_sin_near: angle, cos, sin), and
+# the last drive it evaluated (rhs.drive_once: t, alpha_w, alpha_w')
+AX_TRIG_AL, AX_TRIG_PHI, AX_DRIVE, N_AUX_ALL = 15, 18, 21, 24
 # tracked maxima (docs/model.md §11)
 Q_NF, Q_NR, Q_DEFL, Q_ALPHA, N_Q = 0, 1, 2, 3, 4
 N_RISING = N_Q + 1  # Work.rising: one per quantity and one more (a shape: a constant, not an expression)
@@ -66,9 +70,9 @@ Work = namedtuple("Work", (
     "dy",      # (N_STATE,) a right-hand side evaluated off the step
     "K",       # (N_STAGES, N_STATE) the step's stages
     "Q",       # (8, N_STATE) Q[:4] the step's dense output; Q[4:] a step to a release (events.release_state)
-    "qok",     # (1,) int: Q[:4] holds the current step's dense output (events.ensure_dense)
-    "aux",     # (N_AUX,) forces of the last right-hand side (of f(t1, y1) after a step)
-    "auxs",    # (N_AUX,) the searches' own: aux keeps f(t1, y1)'s forces
+    "qok",     # (1,) int: Q[:4] holds the step's dense output: 0 not yet, 1 of N_CTRL components, 2 all (events.ensure_dense)
+    "aux",     # (N_AUX_ALL,) forces of the last right-hand side (of f(t1, y1) after a step)
+    "auxs",    # (N_AUX_ALL,) the searches' own: aux keeps f(t1, y1)'s forces
     "iw",      # (N_IW,) int: the integer state (module docstring)
     "codes1",  # (N_SLOTS,) int: the slots' codes at the step's end
     "tags1",   # (N_SLOTS,) int: their sides / the tip's edge there

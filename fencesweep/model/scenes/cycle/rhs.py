@@ -3,20 +3,20 @@ and its belt friction. Between events it is smooth: it evaluates only the contac
 is not APART, in the mode (iw) fixed at the step's start."""
 from __future__ import annotations
 
-import math
 
 from fencesweep.kernel import numerics as NU
 from fencesweep.kernel import rk
 from fencesweep.kernel.jit import kernel
+from fencesweep.kernel.trig import cos_sin_near
 from fencesweep.model import layout as Lp
 from fencesweep.model.contact import belt_friction
 from fencesweep.model.drive import drive_angle
-from fencesweep.model.scenes.contacts import (APART, FACE, PIVOT, PUSH, RAIL0, TIP, corner_fence_force,
+from fencesweep.model.scenes.contacts import (APART, FACE, N_SLOTS, PIVOT, PUSH, RAIL0, TIP, corner_fence_force,
                                               corner_fence_geometry, corner_rail_force, fence_in_load, pivot_local,
                                               tip_edge_force, tip_edge_normal, tip_local, tip_position,
                                               beyond_depth, side_edge)
-from fencesweep.model.scenes.cycle.layout import (AX_CA, AX_CPHI, AX_DAL, AX_DMAX, AX_FRAME, AX_FX, AX_FY, AX_NF,
-                                                  AX_NR, AX_PDISS, AX_PFRIC, AX_SA, AX_SPHI, AX_TAU, AX_TQ,
+from fencesweep.model.scenes.cycle.layout import (AX_CA, AX_CPHI, AX_DAL, AX_DMAX, AX_DRIVE, AX_FRAME, AX_FX, AX_FY, AX_NF,
+                                                  AX_NR, AX_PDISS, AX_PFRIC, AX_SA, AX_SPHI, AX_TAU, AX_TQ, AX_TRIG_AL, AX_TRIG_PHI,
                                                   FM_KELVIN, FM_KINEMATIC, IW_CODE, IW_EDGE, IW_LOAD, IW_MODE,
                                                   IW_RIDE, N_AUX)
 from fencesweep.model.scenes.load import corner_motion
@@ -24,12 +24,32 @@ from fencesweep.model.scenes.load import corner_motion
 
 @kernel(inline=True)
 def fence_state(t, y, p, mode):
+    """(alpha, alpha', alpha_w, alpha_w') at (t, y): the drive at t and the fence following it
+    when kinematic (docs/model.md (3.3), fence_follows)."""
+    aw, daw = drive_angle(t, p)
+    return fence_follows(y, mode, aw, daw)
+
+
+@kernel(inline=True)
+def fence_follows(y, mode, aw, daw):
     """(alpha, alpha', alpha_w, alpha_w'): the fence follows alpha_w when kinematic, alpha = alpha_w,
     alpha' = alpha_w' (docs/model.md (3.3): the rigid drive, and the free one until its release)."""
-    aw, daw = drive_angle(t, p)
     if mode == FM_KINEMATIC:
         return aw, daw, aw, daw
     return y[6], y[7], aw, daw
+
+
+@kernel(inline=True)
+def drive_once(t, p, aux):
+    """drive_angle at t, from aux[AX_DRIVE:] when the last right-hand side that wrote aux was at the
+    same t (DOPRI5's sixth stage and its FSAL stage are both at t + h): the same values, once."""
+    if aux[AX_DRIVE] == t:
+        return aux[AX_DRIVE + 1], aux[AX_DRIVE + 2]
+    aw, daw = drive_angle(t, p)
+    aux[AX_DRIVE] = t
+    aux[AX_DRIVE + 1] = aw
+    aux[AX_DRIVE + 2] = daw
+    return aw, daw
 
 
 @kernel(inline=True)
@@ -136,19 +156,32 @@ def tip_sum(y, p, iw, ca, sa, dal, cphi, sphi, aux):
 
 
 @kernel(inline=True)
-def contact_sum(y, p, iw, ca, sa, dal, aux):
+def any_slot_on(iw):
+    """Is any contact slot not APART in the step's mode (iw)? Only then do the contacts push."""
+    for k in range(N_SLOTS):
+        if iw[IW_CODE + k] != APART:
+            return True
+    return False
+
+
+@kernel(inline=True)
+def contact_sum(y, p, iw, al, dal, aux):
     """Sum into aux the forces of every slot that is not APART (docs/model.md §5): on the load
     (AX_FX, AX_FY, AX_TQ), the moment on the fence (AX_TAU), the normal-force sums and the
-    dissipated powers."""
-    cphi = math.cos(y[2])
-    sphi = math.sin(y[2])
+    dissipated powers. With every slot APART nothing pushes, and the frame (the sines and
+    cosines of alpha and phi) is not formed: slots.classify_after_rhs then forms it itself.
+    Otherwise they come from the last angles aux holds (kernel/trig.py cos_sin_near)."""
+    if not any_slot_on(iw):
+        return
+    ca, sa = cos_sin_near(al, aux, AX_TRIG_AL)
+    cphi, sphi = cos_sin_near(y[2], aux, AX_TRIG_PHI)
     save_frame(aux, ca, sa, dal, cphi, sphi)
     corner_sum(y, p, iw, ca, sa, dal, cphi, sphi, aux)
     tip_sum(y, p, iw, ca, sa, dal, cphi, sphi, aux)
 
 
 @kernel(inline=True)
-def load_rhs(y, p, iw, ca, sa, dal, dy, aux):
+def load_rhs(y, p, iw, al, dal, dy, aux):
     """Load equations (docs/model.md (6.5)): velocities, and accelerations from belt friction
     and the contacts; the closed-form belt ride (8.1) when it rides. Returns the moment on the
     fence."""
@@ -161,7 +194,7 @@ def load_rhs(y, p, iw, ca, sa, dal, dy, aux):
         return 0.0
     vx, vy, om = y[3], y[4], y[5]
     bx, by, bt = belt_friction(vx - p[Lp.V], vy, om, p[Lp.FMAX], p[Lp.MMAX], p[Lp.RHO], p[Lp.EPSV])
-    contact_sum(y, p, iw, ca, sa, dal, aux)
+    contact_sum(y, p, iw, al, dal, aux)
     dy[3] = (aux[AX_FX] + bx) / p[Lp.M1]
     dy[4] = (aux[AX_FY] + by) / p[Lp.M1]
     dy[5] = (aux[AX_TQ] + bt) / p[Lp.I1]
@@ -233,12 +266,13 @@ def rhs(t, y, p, iw, dy, aux):
     """Right-hand side of the cycle in the mode of iw; fills dy and aux (contact forces): the
     load's (load_rhs, docs/model.md §6) and the fence's (fence_rhs, docs/model.md §3)."""
     mode = iw[IW_MODE]
-    al, dal, aw, daw = fence_state(t, y, p, mode)
+    aw, daw = drive_once(t, p, aux)
+    al, dal, aw, daw = fence_follows(y, mode, aw, daw)
     for i in range(N_AUX):
         aux[i] = 0.0
     tau = 0.0
     if iw[IW_LOAD] != 0:
-        tau = load_rhs(y, p, iw, math.cos(al), math.sin(al), dal, dy, aux)
+        tau = load_rhs(y, p, iw, al, dal, dy, aux)
     else:
         for i in (0, 1, 2, 3, 4, 5, 9, 11, 12):
             dy[i] = 0.0

@@ -19,7 +19,7 @@ from fencesweep.model.scenes.contacts import (APART, CLIPPED, FACE, N_SLOTS, PIV
                                               beyond_depth, side_edge, under_tip_edge)
 from fencesweep.model.scenes.cycle.layout import (AX_CA, AX_CPHI, AX_DAL, AX_FRAME, AX_SA, AX_SPHI, IW_CODE, IW_EDGE,
                                                   IW_LOAD, IW_MODE)
-from fencesweep.model.scenes.cycle.rhs import fence_state
+from fencesweep.model.scenes.cycle.rhs import drive_once, fence_follows, fence_state
 from fencesweep.model.scenes.load import corner_motion
 
 FENCE_BITS = 0b1100001111  # slots 0-3, TIP, PIVOT
@@ -253,9 +253,15 @@ def classify(t, y, p, iw, codes, gaps, rates, tags):
 @kernel()
 def classify_after_rhs(t, y, p, iw, codes, gaps, rates, tags, aux):
     """classify at (t, y) where aux is from rhs at that point: its frame, when rhs evaluated
-    the contacts there (AX_FRAME), saves drive_angle and four sines and cosines a step."""
-    if iw[IW_LOAD] == 0 or aux[AX_FRAME] == 0.0:
+    the contacts there (AX_FRAME), saves drive_angle and four sines and cosines a step; else
+    its drive (rhs.drive_once) saves drive_angle."""
+    if iw[IW_LOAD] == 0:
         return classify(t, y, p, iw, codes, gaps, rates, tags)
+    if aux[AX_FRAME] == 0.0:
+        aw, daw = drive_once(t, p, aux)
+        al, dal, aw, daw = fence_follows(y, iw[IW_MODE], aw, daw)
+        return classify_in(y, p, iw, codes, gaps, rates, tags, math.cos(al), math.sin(al), dal, math.cos(y[2]),
+                           math.sin(y[2]))
     return classify_in(y, p, iw, codes, gaps, rates, tags, aux[AX_CA], aux[AX_SA], aux[AX_DAL], aux[AX_CPHI],
                        aux[AX_SPHI])
 
