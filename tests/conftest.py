@@ -6,18 +6,13 @@ engine, the small specs and the kernels' first runs, which a test module also ne
 or in another process) import from there; the fixtures below give helpers' engine, spec and first
 runs.
 """
-import contextlib
 import json
 import math
 import os
 
 import pytest
+from filelock import FileLock
 from helpers import SWEEP_SPEC, fake_engine, first_runs, write_spec
-
-try:
-    import fcntl
-except ImportError:  # not POSIX: each xdist worker runs its own
-    fcntl = None
 
 
 @pytest.fixture
@@ -36,15 +31,6 @@ def sweep_spec_file(tmp_path):
     return write_spec(tmp_path, SWEEP_SPEC, "s.yaml")
 
 
-@contextlib.contextmanager
-def _held(path):
-    """An exclusive lock on the file `path` while the block runs (none where fcntl is missing)."""
-    with open(path, "w") as fh:
-        if fcntl is not None:
-            fcntl.flock(fh, fcntl.LOCK_EX)
-        yield
-
-
 def once_per_session(tmp_path_factory, name: str, compute):
     """compute(folder)'s JSON value, computed once per test session even on several xdist workers:
     the first worker to ask computes it under a lock in the session's shared temporary directory
@@ -53,7 +39,7 @@ def once_per_session(tmp_path_factory, name: str, compute):
     if os.environ.get("PYTEST_XDIST_WORKER"):
         root = root.parent  # the session's directory, above each worker's own
     done = root / f"{name}.json"
-    with _held(root / f"{name}.lock"):
+    with FileLock(root / f"{name}.lock"):
         if not done.exists():
             folder = root / name
             folder.mkdir(exist_ok=True)
