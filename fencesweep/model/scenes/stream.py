@@ -35,11 +35,11 @@ from fencesweep.model import results as Rs
 from fencesweep.model.scenes.contacts import N_SLOTS
 from fencesweep.model.scenes.cycle.books import (apply_contact_change, drop_load, finish, record, start,
                                                  swing_amplitude, sync_touch, time_out)
-from fencesweep.model.scenes.cycle.layout import (A_EXITED, A_QMAX, A_STATUS, A_T_EXIT, AX_DRIVE, AX_TRIG_AL, AX_TRIG_PHI, IW_EDGE, IW_MODE, IW_RIDE,
+from fencesweep.model.scenes.cycle.layout import (A_EXITED, A_QMAX, A_STATUS, A_T_EXIT, AX_TRIG_AL, AX_TRIG_PHI, IW_EDGE, IW_MODE, IW_RIDE,
                                                   N_ACC, N_AUX_ALL, N_DENSE, N_IW, N_Q, N_QV, N_RISING, N_STATE, N_TRAJ,
                                                   Q_NF, QV_0, Work)
 from fencesweep.model.scenes.cycle.peaks import quantities_from_aux
-from fencesweep.model.scenes.cycle.rhs import deflection, fence_state, rhs, step
+from fencesweep.model.scenes.cycle.rhs import deflection, fence_state, forget_drive, rhs, step
 from fencesweep.model.scenes.cycle.run import run, set_tolerance
 from fencesweep.model.scenes.cycle.slots import classify, in_contact
 
@@ -63,7 +63,7 @@ def begin_cycle(p, w):
     for a in (w.aux, w.auxs):  # each cycle's sines, cosines and drive its own (kernel/trig.py, rhs.drive_once)
         forget_angle(a, AX_TRIG_AL)
         forget_angle(a, AX_TRIG_PHI)
-        a[AX_DRIVE] = math.nan
+        forget_drive(a)
     w.iw[IW_EDGE] = classify(0.0, w.y, p, w.iw, w.codes1, w.g0, w.r0, w.tags1)
     apply_contact_change(0.0, w.y, p, w.iw, w.codes1, w.iw[IW_EDGE], w.acc)
     w.iw[IW_RIDE] = 0 if in_contact(w.iw) else 1

@@ -3,6 +3,7 @@ and its belt friction. Between events it is smooth: it evaluates only the contac
 is not APART, in the mode (iw) fixed at the step's start."""
 from __future__ import annotations
 
+import math
 
 from fencesweep.kernel import numerics as NU
 from fencesweep.kernel import rk
@@ -50,6 +51,12 @@ def drive_once(t, p, aux):
     aux[AX_DRIVE + 1] = aw
     aux[AX_DRIVE + 2] = daw
     return aw, daw
+
+
+@kernel(inline=True)
+def forget_drive(aux):
+    """No drive kept in aux: the next drive_once evaluates it (each cycle's drive is its own)."""
+    aux[AX_DRIVE] = math.nan
 
 
 @kernel(inline=True)

@@ -13,13 +13,14 @@ from fencesweep.kernel import numerics as NU
 from fencesweep.kernel.jit import kernel
 from fencesweep.model import layout as Lp
 from fencesweep.model import results as Rs
+from fencesweep.model.drive import drive_angle
 from fencesweep.model.scenes.contacts import (APART, CLIPPED, FACE, N_SLOTS, PIVOT, PUSH, RAIL0, TIP,
                                               corner_fence_geometry, corner_s_h, edge_margin, edge_point_rate, fence_in_load, next_code,
                                               pivot_local, tip_edge_normal, tip_gap, tip_local, tip_position,
                                               beyond_depth, side_edge, under_tip_edge)
 from fencesweep.model.scenes.cycle.layout import (AX_CA, AX_CPHI, AX_DAL, AX_FRAME, AX_SA, AX_SPHI, IW_CODE, IW_EDGE,
                                                   IW_LOAD, IW_MODE)
-from fencesweep.model.scenes.cycle.rhs import drive_once, fence_follows, fence_state
+from fencesweep.model.scenes.cycle.rhs import drive_once, fence_follows
 from fencesweep.model.scenes.load import corner_motion
 
 FENCE_BITS = 0b1100001111  # slots 0-3, TIP, PIVOT
@@ -231,7 +232,14 @@ def rail_code(k, y, p, iw, cphi, sphi, d_gap, d_force):
 def frame_at(t, y, p, iw):
     """What the manifold and the slots need of the fence and the load at (t, y): cos and sin of alpha, alpha',
     cos and sin of phi."""
-    al, dal, aw, daw = fence_state(t, y, p, iw[IW_MODE])
+    aw, daw = drive_angle(t, p)
+    return frame_of(y, iw, aw, daw)
+
+
+@kernel(inline=True)
+def frame_of(y, iw, aw, daw):
+    """frame_at with the drive's alpha_w, alpha_w' at that time given."""
+    al, dal, aw, daw = fence_follows(y, iw[IW_MODE], aw, daw)
     return math.cos(al), math.sin(al), dal, math.cos(y[2]), math.sin(y[2])
 
 
@@ -259,9 +267,8 @@ def classify_after_rhs(t, y, p, iw, codes, gaps, rates, tags, aux):
         return classify(t, y, p, iw, codes, gaps, rates, tags)
     if aux[AX_FRAME] == 0.0:
         aw, daw = drive_once(t, p, aux)
-        al, dal, aw, daw = fence_follows(y, iw[IW_MODE], aw, daw)
-        return classify_in(y, p, iw, codes, gaps, rates, tags, math.cos(al), math.sin(al), dal, math.cos(y[2]),
-                           math.sin(y[2]))
+        ca, sa, dal, cphi, sphi = frame_of(y, iw, aw, daw)
+        return classify_in(y, p, iw, codes, gaps, rates, tags, ca, sa, dal, cphi, sphi)
     return classify_in(y, p, iw, codes, gaps, rates, tags, aux[AX_CA], aux[AX_SA], aux[AX_DAL], aux[AX_CPHI],
                        aux[AX_SPHI])
 
