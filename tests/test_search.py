@@ -6,9 +6,8 @@ import math
 
 import numpy as np
 import pytest
-from fencesweep.kernel import numerics as NU
 from fencesweep.kernel import search as S
-from fencesweep.kernel.jit import entry, kernel, python_callable
+from fencesweep.kernel.jit import entry, kernel
 
 pytestmark = pytest.mark.plain_python  # also run without Numba's JIT: tests/test_plain_python.py
 
@@ -94,38 +93,13 @@ _find = S.bisector(_past, "test_bisect_past")
 
 
 @entry()
-def _locate(ctx, tol, guess):
-    return _find(ctx, 0.0, 1.0, tol, guess)
+def _locate(ctx, tol):
+    return _find(ctx, 0.0, 1.0, tol)
 
 
 @pytest.mark.parametrize("where", [0.0, 0.25, 1.0 / 3.0, 0.999999])
 def test_bisect_brackets_the_event_to_the_tolerance(where):
     ctx = np.array([where, 0.0])
-    lo, hi = _locate(ctx, 1e-12, -1.0)
+    lo, hi = _locate(ctx, 1e-12)
     assert lo <= where <= hi and hi - lo <= 1e-12
     assert ctx[1] <= math.ceil(math.log2(1.0 / 1e-12)) + 1  # one halving a predicate call
-
-
-@pytest.mark.parametrize("off", [0.0, 1e-6, -3e-6, 0.1, -0.2])
-def test_a_guess_near_the_event_saves_halvings_and_a_wrong_one_loses_nothing(off):
-    """The guess is asked first at guess +- GUESS_WIDTH: near the event, the bisection starts from a
-    bracket 2 GUESS_WIDTH wide; far from it, the event is still bracketed, at two calls more."""
-    where, tol = 0.4, 1e-12
-    ctx = np.array([where, 0.0])
-    lo, hi = _locate(ctx, tol, where + off)
-    assert lo <= where <= hi and hi - lo <= tol
-    full = math.ceil(math.log2(1.0 / tol)) + 1
-    if abs(off) < NU.GUESS_WIDTH:
-        assert ctx[1] <= 2 + math.ceil(math.log2(2.0 * NU.GUESS_WIDTH / tol)) + 1
-    else:
-        assert ctx[1] <= full + 2
-
-
-@pytest.mark.parametrize("q0, d0, q1, d1, root", [
-    (0.5, -1.0, -0.5, -1.0, 0.5),               # q = 0.5 - s
-    (0.09, 0.0, -0.91, -2.0, 0.3),              # q = 0.09 - s^2
-    (0.5, -1.75, -1.5, -1.25, 0.25),            # q = (0.25 - s)(2 + s - s^2): one root in (0, 1)
-])
-def test_hermite_root_finds_the_sign_change_of_the_cubic(q0, d0, q1, d1, root):
-    """search.hermite_root: the root in (0, 1) of the cubic through (q0, d0) and (q1, d1)."""
-    assert python_callable(S.hermite_root)(q0, d0, q1, d1) == pytest.approx(root, abs=1e-11)

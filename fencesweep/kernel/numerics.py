@@ -53,13 +53,6 @@ H_MAX_PER_PERIOD = 1.0 / 12.0
 #: time results and the ~1e-6 s error of the dense output itself.
 EVENT_TOL = 1e-12
 
-#: Where a contact begins inside a step, the cubic through its gap at the step's ends foresees the
-#: event (search.hermite_root; the gap's interpolant is good to O(h^4)): find_event asks the
-#: predicate first at that theta +- GUESS_WIDTH (a fraction of the step), and bisects from there,
-#: ~15 evaluations an onset instead of ~30. A wrong guess costs one or two evaluations, never the
-#: event: each probe keeps the bracket valid. The event is located to EVENT_TOL as before.
-GUESS_WIDTH = 4e-6
-
 #: A contact released inside a step (a PUSH slot that stops pushing) is located on the method's
 #: own flow, not on the step's dense output alone: the step's later stages lie past the kink
 #: of max(N, 0) (docs/model.md §4), which puts its dense output's velocities at the release

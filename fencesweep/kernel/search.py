@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import math
 
-from fencesweep.kernel import numerics as NU
 from fencesweep.kernel.jit import kernel, specialise
 
 #: the scene's predicate in `bisect` and quantity in `peak_max`, bound by bisector / peak_finder
@@ -27,25 +26,10 @@ def peak_finder(q, name: str):
     return specialise(peak_max, name, QUANTITY=q)
 
 
-def bisect(ctx, lo, hi, tol, guess):
+def bisect(ctx, lo, hi, tol):
     """Event location: PRED(ctx, lo) is False and PRED(ctx, hi) is True; returns the final
-    bracket (lo, hi), hi - lo <= tol, with the event in it (hi is just past the event). A guess
-    inside (lo, hi) (none: outside it) is asked first, at guess + and - GUESS_WIDTH
-    (kernel/numerics.py): each answer keeps the bracket valid, so a wrong guess costs one or two
-    evaluations, never the event. A template: PRED is the scene's (`bisector`)."""
-    if lo < guess < hi:
-        b = guess + NU.GUESS_WIDTH
-        if b < hi:
-            if PRED(ctx, b):
-                hi = b
-            else:
-                lo = b
-        a = guess - NU.GUESS_WIDTH
-        if lo < a:
-            if PRED(ctx, a):
-                hi = a
-            else:
-                lo = a
+    bracket (lo, hi), hi - lo <= tol, with the event in it (hi is just past the event). A
+    template: PRED is the scene's (`bisector`)."""
     while hi - lo > tol:
         mid = 0.5 * (lo + hi)
         if PRED(ctx, mid):
@@ -158,21 +142,3 @@ def hermite_max(q0, d0, q1, d1):
         if 0.0 < s < 1.0 and 2.0 * c2 + 6.0 * c3 * s < 0.0:
             best = max(best, q0 + s * (d0 + s * (c2 + s * c3)))
     return best
-
-
-@kernel(inline=True)
-def hermite_root(q0, d0, q1, d1):
-    """A root in (0, 1) of the cubic with q(0) = q0 > 0 >= q(1) = q1, q'(0) = d0, q'(1) = d1
-    (derivatives in the unit of the interval; the cubic is the quantity to O(h^4), docs/model.md
-    (15.9)), by bisection of its sign change to 2^-40."""
-    c2 = 3.0 * (q1 - q0) - 2.0 * d0 - d1
-    c3 = 2.0 * (q0 - q1) + d0 + d1
-    lo = 0.0
-    hi = 1.0
-    for _ in range(40):
-        mid = 0.5 * (lo + hi)
-        if q0 + mid * (d0 + mid * (c2 + mid * c3)) > 0.0:
-            lo = mid
-        else:
-            hi = mid
-    return 0.5 * (lo + hi)

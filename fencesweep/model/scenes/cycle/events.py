@@ -11,7 +11,7 @@ from __future__ import annotations
 from fencesweep.kernel import numerics as NU
 from fencesweep.kernel import rk
 from fencesweep.kernel.jit import kernel
-from fencesweep.kernel.search import bisector, hermite_max, hermite_root, peak_finder
+from fencesweep.kernel.search import bisector, hermite_max, peak_finder
 from fencesweep.model import layout as Lp
 from fencesweep.model.scenes.contacts import APART, N_SLOTS
 from fencesweep.model.scenes.cycle.layout import IW_CODE, N_CTRL, N_STATE
@@ -125,9 +125,7 @@ def crossing_theta(p, w, t, h, k, tol):
     change located on the dense output (search.bisect), and the slot's code read on the side of
     it where the gap is closed."""
     closed0 = not (w.g0[k] > 0.0)
-    sg = -1.0 if closed0 else 1.0  # the gap's sign at the start, then its change on the ends' cubic
-    guess = hermite_root(sg * w.g0[k], sg * w.r0[k] * h, sg * w.g1[k], sg * w.r1[k] * h)
-    lo, hi = find_crossing((t, h, w.y, w.Q, p, w.iw, w.tmp, k, closed0), 0.0, 1.0, tol, guess)
+    lo, hi = find_crossing((t, h, w.y, w.Q, p, w.iw, w.tmp, k, closed0), 0.0, 1.0, tol)
     th = lo if closed0 else hi
     if mask_changed((t, h, w.y, w.Q, p, w.iw, w.tmp, 1 << k), th):
         return th
@@ -196,20 +194,6 @@ def touched_between(p, w, t, h, hi, mask, grazing, tol):
 
 
 @kernel(inline=True)
-def onset_guess(w, h, mask):
-    """The earliest theta at which a slot of mask whose gap closes over the step (g0 > 0 >= g1)
-    reaches 0 on the cubic through its ends' gaps and rates (search.hermite_root), or -1: where a
-    contact begins, as the step's ends foresee it (search.bisect's guess)."""
-    best = -1.0
-    for k in range(N_SLOTS):
-        if mask & (1 << k) and w.g0[k] > 0.0 and not (w.g1[k] > 0.0):
-            th = hermite_root(w.g0[k], w.r0[k] * h, w.g1[k], w.r1[k] * h)
-            if best < 0.0 or th < best:
-                best = th
-    return best
-
-
-@kernel(inline=True)
 def find_event(p, w, t, h, exited):
     """First event inside the step [t, t + h] on its dense output: (theta just past it, kind)
     with kind 0 none (theta = 1), 1 a contact change or graze, 2 scraped, 3 escaped. The ends
@@ -232,13 +216,13 @@ def find_event(p, w, t, h, exited):
     kind = 0
     if mask != 0:
         ensure_dense(p, w, h)
-        theta = find_change((t, h, w.y, w.Q, p, w.iw, w.tmp, mask), 0.0, hi, tol, onset_guess(w, h, mask))[1]
+        theta = find_change((t, h, w.y, w.Q, p, w.iw, w.tmp, mask), 0.0, hi, tol)[1]
         kind = 1
     if not exited:
         for oc in range(2):
             if outcome_hit(oc, w.y1, p):
                 ensure_dense(p, w, h)
-                th = find_outcome((w.y, w.Q, p, w.tmp, oc), 0.0, 1.0, tol, -1.0)[1]
+                th = find_outcome((w.y, w.Q, p, w.tmp, oc), 0.0, 1.0, tol)[1]
                 if th <= theta:
                     theta = th
                     kind = 2 + oc
@@ -264,7 +248,7 @@ def located(p, w, t, h, lo, hi, Q2, mask):
     of the step [t, t + hi h], just past it (search.bisect)."""
     sh = hi * h
     return hi * find_change((t, sh, w.y, Q2, p, w.iw, w.tmp, mask), lo / hi, 1.0,
-                            NU.EVENT_TOL * max(1.0, t) / sh, -1.0)[1]
+                            NU.EVENT_TOL * max(1.0, t) / sh)[1]
 
 
 @kernel()
