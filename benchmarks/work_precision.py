@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from common import ROOT, md_row, pyplot, save
+from common import ROOT, md_table, pyplot, save
 
 sys.path[:0] = [str(ROOT), str(ROOT / "tests")]  # this tree's package first; tests/reference/: the reference
 
@@ -129,10 +129,10 @@ def summarise(df: pd.DataFrame) -> pd.DataFrame:
     }).reset_index()
 
 
-def md_table(df: pd.DataFrame) -> str:
-    """A Markdown table (numbers to 3 significant digits)."""
-    return "\n".join([md_row(df.columns), "|" + "---|" * len(df.columns)] + [
-        md_row(f"{x:.3g}" if isinstance(x, (float, np.floating)) else x for x in r) for r in df.itertuples(index=False)])
+def df_table(df: pd.DataFrame) -> str:
+    """A Markdown table of df (common.md_table), numbers to 3 significant digits."""
+    return "\n".join(md_table(list(df.columns), ([f"{x:.3g}" if isinstance(x, (float, np.floating)) else x for x in r]
+                                                  for r in df.itertuples(index=False))))
 
 
 STYLE = {ENGINE: ("C0", "o", "-"), RK4: ("C7", "s", "--"), "numbalsoda LSODA (cfunc)": ("C3", "D", "-"),
@@ -302,7 +302,7 @@ def write_pages(df: pd.DataFrame, args, out: Path) -> None:
             "gives the median and the mean over the scenes, the figure the median. Settings: the engine's "
             f"step_factor (tolerance {numerics.TOL:g} x step_factor^{numerics.TOL_EXPONENT:g}), the RK4 "
             "baseline's fixed step dt [s], the rtol of solve_ivp.", "",
-            md_table(summary.drop(columns="knob")), "", *[p + "\n" for p in prose(summary, df, ref_rtol)]]
+            df_table(summary.drop(columns="knob")), "", *[p + "\n" for p in prose(summary, df, ref_rtol)]]
     import verification  # benchmarks/: the section on a table's own check, and its figure
 
     checked = verification.measure()
