@@ -16,7 +16,7 @@ from fencesweep.model import layout as Lp
 from fencesweep.model.scenes.contacts import APART, N_SLOTS
 from fencesweep.model.scenes.cycle.layout import IW_CODE, N_CTRL, N_STATE
 from fencesweep.model.scenes.cycle.rhs import step
-from fencesweep.model.scenes.cycle.slots import (changed_at, changed_mask, classify, frame_at, releases,
+from fencesweep.model.scenes.cycle.slots import (FENCE_BITS, changed_at, changed_mask, classify, frame_at, releases,
                                                  slot_changed, slot_gap)
 from fencesweep.model.scenes.load import outcome_margin
 
@@ -197,7 +197,10 @@ def touched_between(p, w, t, h, hi, mask, grazing, tol):
 def find_event(p, w, t, h, exited):
     """First event inside the step [t, t + h] on its dense output: (theta just past it, kind)
     with kind 0 none (theta = 1), 1 a contact change or graze, 2 scraped, 3 escaped. The ends
-    of the step tell which events can lie inside it; only then is its dense output formed."""
+    of the step tell which events can lie inside it; only then is its dense output formed. A
+    change of one of the fence's slots is searched over all of them: one may change and change
+    back inside the step before the change seen at its end (a pivot end that pushes while a
+    corner leaves the rail)."""
     mask = 0
     grazing = False
     crossing = False
@@ -212,6 +215,8 @@ def find_event(p, w, t, h, exited):
     tol = NU.EVENT_TOL * max(1.0, t) / h
     if grazing or crossing:
         hi, mask = touched_between(p, w, t, h, hi, mask, grazing, tol)
+    if mask & FENCE_BITS:  # one manifold (docs/model.md §15, Events): a change of any of its slots
+        mask |= FENCE_BITS
     theta = 1.0
     kind = 0
     if mask != 0:
