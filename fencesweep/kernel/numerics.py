@@ -18,7 +18,7 @@ INTEGRATORS = ("dopri5", "rk4")
 #: TOL x the fence length, or TOL x the fastest drive-or-belt speed for velocities). Chosen
 #: as the loosest power of ten at which the validation set (tests/test_validation.py) stays
 #: within 1e-4 of the reference in peak_force, deflection_max and t_exit
-#: (benchmarks/tolerance_scan.py, results/tolerance_scan.md).
+#: (results/tolerance_scan.md).
 TOL = 1e-6
 
 #: Tolerance of the one-pulse scenes (`impact`, `freefall`, and the free-fall force that every

@@ -8,7 +8,7 @@ inverse, found by Brent's method.
 The impact is integrated by SciPy (DOP853, with the force's return to zero as a terminal
 event) on the law's own formula (contact.kelvin_force, called as plain Python), not by the
 compiled impact scene: a first cycle then compiles only the cycle's kernels (the impact
-scene's took ~5 s of a cold first run, benchmarks/startup.py). The calibration costs ~1 s once
+scene's took ~5 s of a cold first run, results/startup.md). The calibration costs ~1 s once
 per (e, law) and is kept beside the compiled kernels (kernel/cache.py solved);
 tests/test_contact.py checks that the impact scene, run at the solved q, rebounds at e.
 The same impact gives the free fall's peak force in its own units (peak_force_factor,

@@ -28,7 +28,7 @@ out; no engine, no files (adaptive/run.py runs the elements).
 A simulated element's verdict is the full grid's (the same cycles). An inferred one can be wrong
 only where the verdict changes between elements that agree, i.e. where the margins bend more
 between the corners than the corners show: this is an assumption on the map's smoothness at the
-scale of the cells, not a proof. benchmarks/adaptive.py measures it against the full grid.
+scale of the cells, not a proof. results/adaptive.md measured it against the full grid.
 """
 from __future__ import annotations
 

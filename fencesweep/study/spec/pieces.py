@@ -21,12 +21,12 @@ from fencesweep.study.spec.axes import Axis
 
 #: memory per scene at the peak of planning (sweep/plan.py make_plan: its key digest, free
 #: values and validity, then np.unique's sorts of them and the map scene -> run), with a margin
-#: over what benchmarks/scale_memory.py measures
+#: over what results/scale_memory.md measured
 PLAN_BYTES_PER_SCENE = 160
 
 #: The most scenes one piece of a sweep holds: planning it takes ~0.8 GB at the peak, and its
 #: assembly one block of rows and a bounded cache of chunks, so a sweep's process stays under
-#: 2 GB whatever the spec's size (benchmarks/scale_memory.py measures it). A spec of up to this
+#: 2 GB whatever the spec's size (results/scale_memory.md measured it). A spec of up to this
 #: many scenes is one piece, one table file (the envelope study, 10x over, is 4.2 million). On a
 #: machine with less memory available (half of it for planning), pieces are smaller (piece_limit).
 PIECE_SCENES = 5_000_000

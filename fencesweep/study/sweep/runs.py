@@ -19,7 +19,7 @@ from fencesweep.study.store import table as store
 from fencesweep.study.sweep.plan import Plan
 
 #: chunk size rule: chunks of about CHUNK_SECONDS of work, at least MIN_CHUNKS of them.
-#: A chunk costs ~0.6-2 ms of dispatch and ~2-15 ms to write (benchmarks/sweep_dispatch.py),
+#: A chunk costs ~0.6-2 ms of dispatch and ~2-15 ms to write (benchmarks/sweep_dispatch_*.txt),
 #: i.e. < 1.5 % of one second; MIN_CHUNKS keeps small sweeps balanced and resumable.
 CHUNK_SECONDS, MIN_CHUNKS, CHUNK_MAX = 1.0, 16, 2_000  # CHUNK_MAX bounds the memory in flight
 SERIAL_BELOW = 3.0  # seconds of estimated work under which a local sweep runs in-process
