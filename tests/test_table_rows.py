@@ -56,6 +56,14 @@ CAUSES = {
     # at 6e-4 rad, where the manifold flipped between two points and one every few ms (685
     # steps); the peak 166.7 N at the default setting, 163.0 N at 0.398 (numerics.FACE_TOL)
     "a face resting across the tip": dict(drive="rigid", t_c=1.9, L=0.2, A=0.1, m1=15.0, dP=0.0, R_s=0.2),
+    # an impact ends with a 1.35 ms step from 73 N to the release, which it put 5.6e-6 s early:
+    # 4.9e-4 rad/s more spin, and the next impact, 55 ms later, 1.6e-3 low (2845.7 N for 2850.4 N;
+    # numerics.LIGHT_FORCE, run.release_ahead)
+    "a release located early spins the load into its next impact": dict(
+        drive="rigid", t_c=1.36, v=2.2, L=0.2, A=0.1, m1=15.0, dP=0.1, R_s=-0.7, B2=72, K2=570),
+    # the same at a rail's release: 4.4e-4 rad/s, the next impact 1.7e-3 high
+    "a rail's release located early": dict(t_c=1.1, v=1.5, L=0.539137, A=0.163535, m1=5.06612, dP=0.0565123,
+                                           B2=140, K2=2075),
 }
 #: step factors at which the skimming tip below was missed: 0.5 and 0.398 before the fixes
 SKIM = dict(drive="rigid", t_c=1.7, v=2.75, L=0.36654, A=0.108028, m1=9.83879, dP=0.405206)

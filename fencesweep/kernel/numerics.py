@@ -177,7 +177,13 @@ H_MIN = 1e-14
 #:     The depth alone misses a release whose damping part cancels a deeper contact's elastic
 #:     part (a heavily damped fence letting a load go slowly); so a contact letting go counts as
 #:     light too while the fence's force is below LIGHT_FORCE x F_ff (~6 N for the defaults): a
-#:     release after an impact passes through it in a step or two.
+#:     release after an impact passes through it in a step or two. And for the step in which a
+#:     contact force (the fence's or the rail's), falling at the last step's rate, would reach
+#:     LIGHT_FORCE x F_ff (run.release_ahead): where a damped contact lets go, its elastic and
+#:     damping parts cancel, as ill-conditioned in the state as an onset. A 1.35 ms step from 73 N
+#:     to the release put it 5.6e-6 s early and 4.9e-4 rad/s into the load's spin, and its next
+#:     impact, 55 ms later, 1.6e-3 low (sweeps/fig5a_worst_v.yaml, rigid, R_s -0.7; the audit's
+#:     last peak_force rows over 1e-3 were all of this kind, one a rail's release).
 #:   * by FREE_TOL throughout for a free fence (drive = free): nothing pulls it back to its
 #:     drive, so an error in its rate integrates into its angle until t_c (a coast after the
 #:     load left), and an impact on it passes the load's errors into that rate.

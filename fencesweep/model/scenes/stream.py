@@ -74,7 +74,7 @@ def begin_cycle(p, w):
         w.acc[A_QMAX + k] = w.qv[QV_0, k]
     for i in range(N_Q + 1):
         w.rising[i] = 1.0
-    set_tolerance(p, w)
+    set_tolerance(p, w, 0.0)
     w.row[0] = record(w.traj, w.row[0], 0.0, w.y, p, w.iw, w.aux)
 
 

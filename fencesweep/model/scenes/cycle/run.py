@@ -25,7 +25,7 @@ from fencesweep.model.scenes.contacts import APART, N_SLOTS, RAIL0, TIP
 from fencesweep.model.scenes.cycle.books import after_step, at_t_c, count_stage_time, record, sync_touch, time_out
 from fencesweep.model.scenes.cycle.events import event_state, find_event, long_step
 from fencesweep.model.scenes.cycle.layout import (IW_CODE, IW_LOAD, A_DMAX, A_EXITED, A_QMAX, A_STATUS, AX_DMAX, N_Q, N_STATE, Q_NF,
-                                                  QV_0, QV_1)
+                                                  QV_0, QV_1, QV_RATE, Q_DEFL)
 from fencesweep.model.scenes.cycle.peaks import (quantities, quantities_from_aux, record_peaks, touch_in_step,
                                                  track_maxima)
 from fencesweep.model.scenes.cycle.rhs import rhs, step
@@ -94,11 +94,25 @@ def approach_step(p, w, dt, h_next):
 
 
 @kernel(inline=True)
-def set_tolerance(p, w):
-    """The tolerances of the next step (docs/model.md (15.14); numerics.APPROACH_TOL, FREE_TOL
-    say why): the run's, times APPROACH_TOL while the load is on the belt and touches nothing
-    or lets go of the fence slowly, times FREE_TOL for a free fence."""
-    s = NU.APPROACH_TOL if w.iw[IW_LOAD] != 0 and (not in_contact(w.iw) or light_fence_contact(p, w)) else 1.0
+def release_ahead(p, w, h):
+    """Will the fence's or the rail's force, falling at the last step's rate, come within
+    LIGHT_FORCE x F_ff of zero within the next step h (a release ahead, docs/model.md (15.14))?"""
+    for k in range(Q_DEFL):
+        q = w.qv[QV_0, k]
+        r = w.qv[QV_RATE, k]
+        if q > 0.0 and r < 0.0 and math.isfinite(r) and q + h * r <= NU.LIGHT_FORCE * p[Lp.FFORCE]:
+            return True
+    return False
+
+
+@kernel(inline=True)
+def set_tolerance(p, w, h_next):
+    """The tolerances of the next step h_next (docs/model.md (15.14); numerics.APPROACH_TOL,
+    FREE_TOL say why): the run's, times APPROACH_TOL while the load is on the belt and touches
+    nothing, lets go of the fence slowly, or will let go of the fence or the rail within the
+    step (release_ahead), times FREE_TOL for a free fence."""
+    s = NU.APPROACH_TOL if w.iw[IW_LOAD] != 0 and (not in_contact(w.iw) or light_fence_contact(p, w)
+                                                   or release_ahead(p, w, h_next)) else 1.0
     if int(p[Lp.DRIVE]) == Lp.DRIVE_FREE:
         s = min(s, NU.FREE_TOL)
     for i in range(N_STATE):
@@ -132,7 +146,7 @@ def move_on(p, w, t1, kind, edge1, h_next):
         w.r0[i] = w.r1[i]
     for i in range(N_STATE):
         w.y[i] = w.y1[i]
-    set_tolerance(p, w)
+    set_tolerance(p, w, h_next)
     return h_next
 
 
