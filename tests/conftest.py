@@ -6,13 +6,14 @@ engine, the small specs and the kernels' first runs, which a test module also ne
 or in another process) import from there; the fixtures below give helpers' engine, spec and first
 runs.
 """
+import contextlib
 import json
 import math
 import os
 
 import pytest
 from filelock import FileLock
-from helpers import SWEEP_SPEC, fake_engine, first_runs, write_spec
+from helpers import SWEEP_SPEC, fake_engine, first_run_here_and_alone, first_run_pair, write_spec
 
 
 @pytest.fixture
@@ -47,12 +48,28 @@ def once_per_session(tmp_path_factory, name: str, compute):
         return json.loads(done.read_text())
 
 
+@pytest.fixture(scope="session", autouse=True)
+def _first_run_pair_before_any_test(request, tmp_path_factory):
+    """When the session reads the first runs (`first_runs`), their pair (helpers.first_run_pair)
+    runs before any test, on every xdist worker: the first worker to get here runs it while the
+    others wait for it (both cores are busy meanwhile: the compiling process and its helper). On
+    a new clone the pair compiles the kernels into the cache the tests use, which they then load
+    instead of compiling them once more; and no test compiles in that cache while the pair does
+    (the pair's processes must be the ones that compile there). Should the pair raise, only the
+    tests that read it fail: `first_runs` asks for it again."""
+    if any("first_runs" in item.fixturenames for item in request.session.items):
+        with contextlib.suppress(Exception):
+            once_per_session(tmp_path_factory, "first_run_pair", first_run_pair)
+
+
 @pytest.fixture(scope="session", name="first_runs")
 def _first_runs(tmp_path_factory):
-    """helpers.first_runs: the kernels' first runs on an empty cache, each a new process that
-    compiles them (two started at once, then one alone), and the same runs on this checkout's
-    cache; run once per session for tests/test_jit.py and tests/test_compile_isolation.py."""
-    return once_per_session(tmp_path_factory, "first_runs", first_runs)
+    """The kernels' first runs in new processes, run once per session for tests/test_jit.py and
+    tests/test_compile_isolation.py: helpers.first_run_pair's (two started at once on an empty
+    cache; run before any test, above) and helpers.first_run_here_and_alone's (the same runs on
+    this checkout's cache, then one process compiling alone on another empty cache), in one dict."""
+    pair = once_per_session(tmp_path_factory, "first_run_pair", first_run_pair)
+    return {**pair, **once_per_session(tmp_path_factory, "first_run_here_and_alone", first_run_here_and_alone)}
 
 
 def tip_depth(row, vals):

@@ -1,9 +1,9 @@
 """What several test files share: the stand-in for the engine that the sweep tests run, the
 small specs they sweep, and the first runs on an empty cache that tests/test_jit.py and
-tests/test_compile_isolation.py both read (`first_runs`). Plain functions and constants, so that
-a test module can use them at import time (a default argument) and ship the engine to another
-process by value (cloudpickle); conftest.py gives them as fixtures too (`faked_engine`,
-`sweep_spec_file`, `first_runs`).
+tests/test_compile_isolation.py both read (`first_run_pair`, `first_run_here_and_alone`). Plain
+functions and constants, so that a test module can use them at import time (a default argument)
+and ship the engine to another process by value (cloudpickle); conftest.py gives them as
+fixtures too (`faked_engine`, `sweep_spec_file`, `first_runs`).
 
 Importable as `helpers` through pyproject.toml's pytest pythonpath (tests/).
 """
@@ -240,27 +240,53 @@ def first_run(mode: str, cache_dir: Path | None, **env) -> dict:
     return _finished((r.stdout, r.stderr), r.returncode)
 
 
-def first_runs(root: Path) -> dict:
-    """The first runs that tests/test_jit.py and tests/test_compile_isolation.py read, each
-    compiling the kernels once in a new process on an empty cache:
+def kernels_compiled_in(directory: Path) -> bool:
+    """Has anything been kept in the kernels' cache directory `directory` (kernel/cache.py DIR: a
+    compiled kernel, a compiled-* marker, a solved value)? A new clone's has nothing (a test
+    session's collection makes its folders only)."""
+    return directory.is_dir() and any(p.is_file() for p in directory.rglob("*"))
 
-    * "pair": two processes started at once on one empty cache (root/pair), the compile helper
-      on where it can be (kernel/share.py): one compiles, the other waits and loads;
-    * "here": the same runs on this checkout's cache (compiled already: nothing compiles);
-    * "alone": one process on another empty cache (root/alone), the helper off: every kernel
-      compiled in that process;
-    * "cache": root/pair, the pair's cache directory.
+
+def first_run_pair(root: Path) -> dict:
+    """Two FIRST_RUN processes started at once on one empty cache, the compile helper on where it
+    can be (kernel/share.py): one compiles, the other waits and loads (tests/test_jit.py).
+
+    The empty cache is the one the tests' own processes use (kernel/cache.py DIR, under
+    NUMBA_CACHE_DIR or the package's __pycache__) when nothing is kept there yet, as in a new
+    clone: the kernels compile once for the whole session, in the pair, and the tests load them
+    (conftest.py runs the pair before any test of a session that reads it). Else (a checkout
+    whose kernels are compiled already) a new one, root/pair. Any share-* directory the pair
+    left is listed right after it, before a test process can start a compile of its own there.
+
+    {"pair": `_finished`'s dict of each, "cache": the cache directory (NUMBA_CACHE_DIR) they
+    ran on, "shared": whether that is the tests' own, "left": the share-* directories left in it}
     """
-    from fencesweep.kernel import share
+    from fencesweep.kernel import cache
 
-    env = _first_run_env(root / "pair")
+    shared = not kernels_compiled_in(cache.DIR)
+    base = cache.DIR.parent if shared else root / "pair"
+    env = _first_run_env(base)
     procs = [subprocess.Popen([sys.executable, "-c", FIRST_RUN, "cold"], cwd=ROOT, env=env, stdout=subprocess.PIPE,
                               stderr=subprocess.PIPE, text=True) for _ in range(2)]
     pair = [_finished(p.communicate(timeout=600), p.returncode) for p in procs]
+    return {"pair": pair, "cache": str(base), "shared": shared,
+            "left": sorted(str(p) for p in base.glob("fencesweep-*/share-*"))}
+
+
+def first_run_here_and_alone(root: Path) -> dict:
+    """The other first runs tests/test_jit.py reads:
+
+    * "here": FIRST_RUN on this checkout's cache (compiled already, by the pair or before the
+      session: nothing compiles);
+    * "alone": one process on another empty cache (root/alone), the helper off: every kernel
+      compiled in that process.
+    """
+    from fencesweep.kernel import share
+
     here = subprocess.run([sys.executable, "-c", FIRST_RUN, "cold"], cwd=ROOT, capture_output=True, text=True,
                           timeout=600)
-    return {"pair": pair, "here": _finished((here.stdout, here.stderr), here.returncode),
-            "alone": first_run("cold", root / "alone", **{share.HELPER_ENV: "0"}), "cache": str(root / "pair")}
+    return {"here": _finished((here.stdout, here.stderr), here.returncode),
+            "alone": first_run("cold", root / "alone", **{share.HELPER_ENV: "0"})}
 
 
 # the engine goes to loky workers and to test subprocesses pickled by value: they need not
