@@ -100,6 +100,8 @@ def test_sets_that_differ_in_a_used_parameter_never_share_a_key(scene, name, dat
     given = data.draw(EVERY_PARAMETER, label="given")
     if scene in ("cycle", "stream") and given["integrator"] == "rk4":
         given["t_c"] = given["t_max"] = 1.0  # a fixed step of 1e-4 s over 1 s: 1e4 steps at most
+        if given["dt"] is None:  # the derived step, 1e-5 s, is 1e5 steps (~0.1 s a run, most of the file's
+            given["dt"] = RANGES["dt"][0]  # time); dt explicit in RANGES' bounds, so that the above holds
     # the second value drawn unequal to the first (a draw of the value alone, not of another whole
     # example that the assume below would reject)
     other = dict(given, **{name: data.draw(value(name).filter(lambda v: v != given[name]), label=f"{name} (other)")})
