@@ -10,10 +10,12 @@ import contextlib
 import json
 import math
 import os
+from pathlib import Path
 
 import pytest
 from filelock import FileLock
-from helpers import SWEEP_SPEC, fake_engine, first_run_here_and_alone, first_run_pair, write_spec
+from helpers import (SWEEP_SPEC, background_result, fake_engine, first_run_here, first_run_pair,
+                     wait_for_background, write_spec)
 
 
 @pytest.fixture
@@ -52,24 +54,28 @@ def once_per_session(tmp_path_factory, name: str, compute):
 def _first_run_pair_before_any_test(request, tmp_path_factory):
     """When the session reads the first runs (`first_runs`), their pair (helpers.first_run_pair)
     runs before any test, on every xdist worker: the first worker to get here runs it while the
-    others wait for it (both cores are busy meanwhile: the compiling process and its helper). On
-    a new clone the pair compiles the kernels into the cache the tests use, which they then load
-    instead of compiling them once more; and no test compiles in that cache while the pair does
-    (the pair's processes must be the ones that compile there). Should the pair raise, only the
-    tests that read it fail: `first_runs` asks for it again."""
+    others wait for it (the cores are busy meanwhile: the compiling process, its helper, and the
+    process that compiles alone in the background). On a new clone the pair compiles the kernels
+    into the cache the tests use, which they then load instead of compiling them once more; and no
+    test compiles in that cache while the pair does (the pair's processes must be the ones that
+    compile there). Should the pair raise, only the tests that read it fail: `first_runs` asks
+    again. At the session's end the worker that started the background process waits for it."""
     if any("first_runs" in item.fixturenames for item in request.session.items):
         with contextlib.suppress(Exception):
             once_per_session(tmp_path_factory, "first_run_pair", first_run_pair)
+    yield
+    wait_for_background()
 
 
 @pytest.fixture(scope="session", name="first_runs")
 def _first_runs(tmp_path_factory):
     """The kernels' first runs in new processes, run once per session for tests/test_jit.py and
-    tests/test_compile_isolation.py: helpers.first_run_pair's (two started at once on an empty
-    cache; run before any test, above) and helpers.first_run_here_and_alone's (the same runs on
-    this checkout's cache, then one process compiling alone on another empty cache), in one dict."""
-    pair = once_per_session(tmp_path_factory, "first_run_pair", first_run_pair)
-    return {**pair, **once_per_session(tmp_path_factory, "first_run_here_and_alone", first_run_here_and_alone)}
+    tests/test_compile_isolation.py (helpers.first_run_pair): "pair", two started at once on an
+    empty cache (before any test, above); "alone", one compiling alone on another (in the
+    background meanwhile); "here", the same runs on this checkout's cache."""
+    cold = once_per_session(tmp_path_factory, "first_run_pair", first_run_pair)
+    here = cold["here"] or once_per_session(tmp_path_factory, "first_run_here", first_run_here)
+    return {**cold, "here": here, "alone": background_result(Path(cold["alone_file"]))}
 
 
 def tip_depth(row, vals):

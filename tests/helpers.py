@@ -1,6 +1,6 @@
 """What several test files share: the stand-in for the engine that the sweep tests run, the
 small specs they sweep, and the first runs on an empty cache that tests/test_jit.py and
-tests/test_compile_isolation.py both read (`first_run_pair`, `first_run_here_and_alone`). Plain
+tests/test_compile_isolation.py both read (`first_run_pair`, `first_run_here`). Plain
 functions and constants, so that a test module can use them at import time (a default argument)
 and ship the engine to another process by value (cloudpickle); conftest.py gives them as
 fixtures too (`faked_engine`, `sweep_spec_file`, `first_runs`).
@@ -15,6 +15,7 @@ import os
 import subprocess
 import sys
 import textwrap
+import time
 from pathlib import Path
 
 import cloudpickle
@@ -247,46 +248,100 @@ def kernels_compiled_in(directory: Path) -> bool:
     return directory.is_dir() and any(p.is_file() for p in directory.rglob("*"))
 
 
-def first_run_pair(root: Path) -> dict:
-    """Two FIRST_RUN processes started at once on one empty cache, the compile helper on where it
-    can be (kernel/share.py): one compiles, the other waits and loads (tests/test_jit.py).
+#: FIRST_RUN "cold" (argv[2]) in a new process at the lowest priority (it takes the CPU the tests
+#: leave), in the folder argv[3]; when it ends, {"rc", "stdout", "stderr"} written whole to the
+#: file argv[1] (a reader sees it complete or not at all)
+IN_BACKGROUND = textwrap.dedent("""
+    import json, os, subprocess, sys, traceback
+    out, code, cwd = sys.argv[1:4]
+    if hasattr(os, "nice"):
+        os.nice(19)
+    try:
+        r = subprocess.run([sys.executable, "-c", code, "cold"], cwd=cwd, capture_output=True, text=True, timeout=600)
+        done = {"rc": r.returncode, "stdout": r.stdout, "stderr": r.stderr}
+    except Exception:
+        done = {"rc": None, "stdout": "", "stderr": traceback.format_exc()}
+    with open(out + ".tmp", "w") as fh:
+        json.dump(done, fh)
+    os.replace(out + ".tmp", out)
+""")
+#: the IN_BACKGROUND processes this process started (`wait_for_background`)
+_BACKGROUND: list = []
 
-    The empty cache is the one the tests' own processes use (kernel/cache.py DIR, under
+
+def background_result(path: Path, timeout: float = 900.0) -> dict:
+    """`_finished`'s dict of the IN_BACKGROUND run that writes `path`, once written (from any process)."""
+    deadline = time.monotonic() + timeout
+    while not path.exists():
+        if time.monotonic() > deadline:
+            return {"rc": None, "stderr": f"no result in {path} after {timeout:g} s", "report": None}
+        time.sleep(0.1)
+    r = json.loads(path.read_text())
+    return _finished((r["stdout"], r["stderr"]), r["rc"])
+
+
+def wait_for_background(timeout: float = 900.0) -> None:
+    """Wait for the IN_BACKGROUND processes this process started (another may still read their
+    results), stopping any still running after `timeout`."""
+    while _BACKGROUND:
+        proc = _BACKGROUND.pop()
+        try:
+            proc.wait(timeout)
+        except BaseException:
+            proc.kill()
+            proc.wait()
+            raise
+
+
+def first_run_pair(root: Path) -> dict:
+    """The first runs on empty caches that tests/test_jit.py and tests/test_compile_isolation.py
+    read:
+
+    * "pair": two FIRST_RUN processes started at once on one empty cache, the compile helper on
+      where it can be (kernel/share.py): one compiles, the other waits and loads;
+    * "alone_file": where one process on another empty cache (root/alone), the helper off, every
+      kernel compiled in it, writes its result (`background_result`). It is started with the
+      pair, in the background at the lowest priority: it takes the second core while the pair's
+      compile has one process only (before the helper starts and once it is done), and what the
+      tests leave after;
+    * "here": FIRST_RUN on this checkout's cache, compiled already (nothing compiles): the pair's
+      process that loaded the kernels when the pair ran on that cache (below), else None (the
+      caller runs `first_run_here`).
+
+    The pair's empty cache is the one the tests' own processes use (kernel/cache.py DIR, under
     NUMBA_CACHE_DIR or the package's __pycache__) when nothing is kept there yet, as in a new
     clone: the kernels compile once for the whole session, in the pair, and the tests load them
-    (conftest.py runs the pair before any test of a session that reads it). Else (a checkout
-    whose kernels are compiled already) a new one, root/pair. Any share-* directory the pair
-    left is listed right after it, before a test process can start a compile of its own there.
-
-    {"pair": `_finished`'s dict of each, "cache": the cache directory (NUMBA_CACHE_DIR) they
-    ran on, "shared": whether that is the tests' own, "left": the share-* directories left in it}
+    (conftest.py runs the pair before any test of a session that reads it). Else (a checkout whose
+    kernels are compiled already) a new one, root/pair. Any share-* directory the pair left is
+    listed right after it ("left"), before a test process can start a compile of its own there;
+    "cache" is the pair's cache directory (NUMBA_CACHE_DIR), "shared" whether it is the tests' own.
     """
-    from fencesweep.kernel import cache
+    from fencesweep.kernel import cache, share
 
     shared = not kernels_compiled_in(cache.DIR)
     base = cache.DIR.parent if shared else root / "pair"
+    alone = root / "alone.json"
+    _BACKGROUND.append(subprocess.Popen([sys.executable, "-c", IN_BACKGROUND, str(alone), FIRST_RUN, str(ROOT)],
+                                        env=_first_run_env(root / "alone", **{share.HELPER_ENV: "0"}),
+                                        stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                                        stderr=subprocess.DEVNULL))
     env = _first_run_env(base)
     procs = [subprocess.Popen([sys.executable, "-c", FIRST_RUN, "cold"], cwd=ROOT, env=env, stdout=subprocess.PIPE,
                               stderr=subprocess.PIPE, text=True) for _ in range(2)]
     pair = [_finished(p.communicate(timeout=600), p.returncode) for p in procs]
-    return {"pair": pair, "cache": str(base), "shared": shared,
-            "left": sorted(str(p) for p in base.glob("fencesweep-*/share-*"))}
+    left = sorted(str(p) for p in base.glob("fencesweep-*/share-*"))
+    loaded = [p for p in pair if "compiling the cycle kernels" not in p["stderr"]]
+    return {"pair": pair, "alone_file": str(alone), "here": loaded[0] if shared and loaded else None,
+            "cache": str(base), "shared": shared, "left": left}
 
 
-def first_run_here_and_alone(root: Path) -> dict:
-    """The other first runs tests/test_jit.py reads:
-
-    * "here": FIRST_RUN on this checkout's cache (compiled already, by the pair or before the
-      session: nothing compiles);
-    * "alone": one process on another empty cache (root/alone), the helper off: every kernel
-      compiled in that process.
-    """
-    from fencesweep.kernel import share
-
-    here = subprocess.run([sys.executable, "-c", FIRST_RUN, "cold"], cwd=ROOT, capture_output=True, text=True,
-                          timeout=600)
-    return {"here": _finished((here.stdout, here.stderr), here.returncode),
-            "alone": first_run("cold", root / "alone", **{share.HELPER_ENV: "0"})}
+def first_run_here(root: Path) -> dict:
+    """FIRST_RUN on this checkout's cache (compiled already, by the pair or before the session:
+    nothing compiles), which tests/test_jit.py compares with the runs on empty caches:
+    `_finished`'s dict."""
+    r = subprocess.run([sys.executable, "-c", FIRST_RUN, "cold"], cwd=ROOT, capture_output=True, text=True,
+                       timeout=600)
+    return _finished((r.stdout, r.stderr), r.returncode)
 
 
 # the engine goes to loky workers and to test subprocesses pickled by value: they need not

@@ -147,9 +147,9 @@ def test_the_hash_covers_every_module_a_kernel_is_compiled_from():
 def test_two_processes_on_an_empty_cache_both_finish_and_every_function_compiles_once(first_runs):
     """Two first runs started at once: one compiles (and says so) under the compile lock, the
     other waits and loads the kernels; both give the in-process results. (The processes:
-    helpers.first_run_pair and first_run_here_and_alone, run once per session, the pair before
-    any test: on a new clone it compiles the kernels into the cache the tests then load;
-    tests/test_compile_isolation.py reads them too.)"""
+    helpers.first_run_pair, run once per session before any test: on a new clone the pair compiles
+    the kernels into the cache the tests then load, and its process that loaded them is the run
+    "here"; tests/test_compile_isolation.py reads them too.)"""
     pair, here, alone = first_runs["pair"], first_runs["here"], first_runs["alone"]
     assert [p["rc"] for p in pair] == [0, 0], [p["stderr"][-2000:] for p in pair]
     assert here["rc"] == 0, here["stderr"][-2000:]
