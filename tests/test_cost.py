@@ -18,9 +18,12 @@ COST_MARGIN = 1.10
 #: (scene, parameters) -> steps + rejected steps, measured 2026-11-28 at the default tolerance.
 #: small_far rigid went from 39 to 48 then: a release under numerics.LIGHT_FORCE is stepped at
 #: the tighter tolerance of a light contact (its contact_time was 1e-3 off in whole tables).
+#: Then 48 -> 61 on 2026-11-29 (47 steps + 14 rejected): a release ahead is stepped at that
+#: tolerance too (run.release_ahead; a release located 5.6e-6 s early had put an impact 1.6e-3
+#: low), and a step sized for the looser tolerance is rejected once or twice where it tightens.
 MEASURED = {
     ("cycle", "small_far", "flexible"): 212,
-    ("cycle", "small_far", "rigid"): 48,
+    ("cycle", "small_far", "rigid"): 61,
     ("cycle", "long_near", "flexible"): 459,
     ("cycle", "long_near", "rigid"): 322,
 }

@@ -242,7 +242,12 @@ def test_backend_cuda_on_the_simulator_writes_the_cpus_table(tmp_path):
         elif a[c].dtype.kind == "f":
             x, y = a[c].to_numpy(), b[c].to_numpy()
             both_nan = np.isnan(x) & np.isnan(y)
-            assert (both_nan | (np.abs(x - y) <= 1e-6 * np.maximum(1.0, np.abs(x)))).all(), c
+            # the simulator's libm is Python's, whose last bits can tip a step's tolerance switch
+            # (run.set_tolerance) the other way (n_steps above): the energies, integrals over the
+            # cycle, then move by their own integration error (1e-5 to 1.4e-4 of small_far's
+            # contact_energy at the default setting against step_factor 0.1), the rest by < 1e-6
+            rel = 1e-4 if c in ("contact_energy", "damper_energy") else 1e-6
+            assert (both_nan | (np.abs(x - y) <= rel * np.maximum(1.0, np.abs(x)))).all(), c
         else:
             assert (a[c] == b[c]).all(), c
     meta = store.read_metadata(gpu)
