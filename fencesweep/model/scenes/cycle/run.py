@@ -96,7 +96,11 @@ def approach_step(p, w, dt, h_next):
 @kernel(inline=True)
 def release_ahead(p, w, h):
     """Will the fence's or the rail's force, falling at the last step's rate, come within
-    LIGHT_FORCE x F_ff of zero within the next step h (a release ahead, docs/model.md (15.14))?"""
+    LIGHT_FORCE x F_ff of zero within the next step h (a release ahead, docs/model.md (15.14))?
+    h = 0 at a cycle's start (stream.begin_cycle): no step yet, and the rates are the last
+    cycle's."""
+    if h <= 0.0:
+        return False
     for k in range(Q_DEFL):
         q = w.qv[QV_0, k]
         r = w.qv[QV_RATE, k]
