@@ -59,11 +59,10 @@ def last_stage(method):
 
 
 @kernel(inline=True)
-def dopri5_stage(s, t, y, h, K, out):  # noqa: C901 (12: the tableau's six rows, each written out)
+def dopri5_stage(s, t, y, h, K, out, n):  # noqa: C901 (12: the tableau's six rows, each written out)
     """The state y + h sum_j a_sj K_j at which DOPRI5's stage s (1..6; 6: the solution y1) is
-    evaluated, into out; returns the stage's time t + c_s h. The sums are written out in the
+    evaluated, into out[:n]; returns the stage's time t + c_s h. The sums are written out in the
     order of the tableau's rows."""
-    n = y.shape[0]
     if s == 1:
         for m in range(n):
             out[m] = y[m] + h * A21 * K[0, m]
@@ -90,10 +89,9 @@ def dopri5_stage(s, t, y, h, K, out):  # noqa: C901 (12: the tableau's six rows,
 
 
 @kernel(inline=True)
-def rk4_stage(s, t, y, h, K, out):
+def rk4_stage(s, t, y, h, K, out, n):
     """The state at which classical RK4's stage s (1..3; 4: the solution y1) is evaluated, into
-    out; returns its time."""
-    n = y.shape[0]
+    out[:n]; returns its time."""
     if s < 4:
         c = RK4_C[s]
         for m in range(n):
@@ -104,13 +102,17 @@ def rk4_stage(s, t, y, h, K, out):
     return t + h
 
 
-#: the scene's right-hand side in the template `step`, bound by `stepper`
+#: the scene's right-hand side in the template `step`, and the leading components of the state it
+#: reads (0: all), bound by `stepper`
 RHS = None
+N_READ = 0
 
 
-def stepper(rhs, name: str):
-    """`step` with the right-hand side `rhs`, compiled as the kernel function `name`."""
-    return specialise(step, name, RHS=rhs)
+def stepper(rhs, name: str, n_read: int = 0):
+    """`step` with the right-hand side `rhs`, compiled as the kernel function `name`; `n_read`: the
+    leading components of the state that `rhs` reads (0: all). The others (quadratures, such as
+    the cycle's energies) enter no stage: only the solution y1 is formed for them."""
+    return specialise(step, name, RHS=rhs, N_READ=n_read)
 
 
 def step(method, t, y, h, p, iw, K, tmp, y1, aux, atol, rtol, n_ctrl):
@@ -118,12 +120,15 @@ def step(method, t, y, h, p, iw, K, tmp, y1, aux, atol, rtol, n_ctrl):
     y1), the FSAL stage) and y1; returns the error norm of the step (acceptable when <= 1; 0 for
     the fixed-step RK4, which has no estimate). A template: RHS is the scene's (`stepper`)."""
     last = last_stage(method)
+    n_all = y.shape[0]
+    n_read = N_READ if N_READ > 0 else n_all
     for s in range(1, last + 1):
         out = y1 if s == last else tmp
+        n = n_all if s == last else n_read  # a stage's state: what the right-hand side reads
         if method == METHOD_RK4:
-            ts = rk4_stage(s, t, y, h, K, out)
+            ts = rk4_stage(s, t, y, h, K, out, n)
         else:
-            ts = dopri5_stage(s, t, y, h, K, out)
+            ts = dopri5_stage(s, t, y, h, K, out, n)
         RHS(ts, out, p, iw, K[s if s < last else 6], aux)
     if method == METHOD_RK4:
         return 0.0

@@ -9,7 +9,8 @@ State y (N_STATE = 13):
   11   belt work      int (F . v + M omega) dt
   12   contact friction dissipation int sum -f w dt
 The energies are quadratures of the first 8 components; all 13 are under error control (the
-events and peaks read only the first N_CTRL = 8 from the dense output).
+right-hand side, the events and the peaks read only the first N_CTRL = 8: a step's stages form
+only those, its solution all 13).
 
 Integer work vector iw: the corners' sides sigma_j (§5.1), the code of each contact slot
 (contacts.py: APART / PUSH / CLIPPED), the fence's manifold (its axis, docs/model.md (5.7)), the fence mode, whether the load is on
@@ -23,7 +24,7 @@ from __future__ import annotations
 from collections import namedtuple
 
 N_STATE = 13
-N_CTRL = 8  # components that events and peaks read from the dense output (the energies are not)
+N_CTRL = 8  # components that the right-hand side, events and peaks read (the energies are not)
 # integer work vector
 IW_CODE = 4  # 4 .. 13: slot codes (contacts.N_SLOTS)
 IW_EDGE = 14  # the fence's manifold: its tag (slots.manifold)
@@ -38,9 +39,10 @@ AX_NF, AX_NR, AX_TAU, AX_DMAX, AX_FX, AX_FY, AX_TQ, AX_PDISS, AX_PFRIC = 0, 1, 2
 # which classify reuses at the end of a step instead of computing it again
 AX_CA, AX_SA, AX_DAL, AX_CPHI, AX_SPHI, AX_FRAME, N_AUX = 9, 10, 11, 12, 13, 14, 15
 # ... and, after the N_AUX that each right-hand side clears, the last angles of the fence and the
-# load it took sines and cosines of exactly (kernel/trig.py cos_sin_near: angle, cos, sin), and
-# the last drive it evaluated (rhs.drive_once: t, alpha_w, alpha_w')
-AX_TRIG_AL, AX_TRIG_PHI, AX_DRIVE, N_AUX_ALL = 15, 18, 21, 24
+# load it took sines and cosines of exactly (kernel/trig.py cos_sin_near: angle, cos, sin), the
+# last drive it evaluated (rhs.drive_once: t, alpha_w, alpha_w') and the drive at the step's start
+# (rhs.keep_drive: the same three)
+AX_TRIG_AL, AX_TRIG_PHI, AX_DRIVE, AX_KEPT, N_AUX_ALL = 15, 18, 21, 24, 27
 # tracked maxima (docs/model.md §11)
 Q_NF, Q_NR, Q_DEFL, Q_ALPHA, N_Q = 0, 1, 2, 3, 4
 N_RISING = N_Q + 1  # Work.rising: one per quantity and one more (a shape: a constant, not an expression)

@@ -17,7 +17,7 @@ from fencesweep.model.scenes.cycle.events import ensure_dense
 from fencesweep.model.scenes.cycle.layout import (A_QMAX, A_TOUCH, AX_NF, AX_NR, IW_LOAD, IW_MODE, IW_RIDE, N_CTRL, N_Q,
                                                   N_STATE, Q_ALPHA, Q_DEFL, Q_NF, Q_NR, QV_0, QV_1, QV_A, QV_B,
                                                   QV_RATE, QV_S, QV_THETA)
-from fencesweep.model.scenes.cycle.rhs import deflection, fence_state, rhs, step
+from fencesweep.model.scenes.cycle.rhs import deflection, fence_state_in, rhs, step
 
 UNJUDGED = -1.0  # rising[k] when the step before did not judge quantity k at its end
 SAMPLE = 1e-3  # judge_forces samples the forces this fraction of the step inside its ends
@@ -30,7 +30,7 @@ def quantities(t, y, p, iw, aux, dy, q, forces):
     |alpha - alpha_w|, alpha. Their running maxima are kept at the steps' ends (run.move_on)
     and inside the steps (track_maxima). Without `forces` the force sums (which cost a
     right-hand side) are left as they are."""
-    al, dal, aw, daw = fence_state(t, y, p, iw[IW_MODE])
+    al, dal, aw, daw = fence_state_in(t, y, p, iw[IW_MODE], aux)
     if forces:
         q[Q_NF] = 0.0
         q[Q_NR] = 0.0
@@ -46,7 +46,7 @@ def quantities(t, y, p, iw, aux, dy, q, forces):
 @kernel(inline=True)
 def quantities_from_aux(t, y, p, iw, aux, q):
     """The tracked quantities at (t, y) with aux from rhs there."""
-    al, dal, aw, daw = fence_state(t, y, p, iw[IW_MODE])
+    al, dal, aw, daw = fence_state_in(t, y, p, iw[IW_MODE], aux)
     q[Q_NF] = aux[AX_NF]
     q[Q_NR] = aux[AX_NR]
     dev, rate = deflection(al, dal, aw, daw)
@@ -89,10 +89,10 @@ def reach(q0, q1, rate, span):
 
 
 @kernel(inline=True)
-def fence_values(t, y, p, iw):
+def fence_values(t, y, p, iw, aux):
     """The fence's tracked values at (t, y) and their rates: the deflection dalpha = alpha -
     alpha_w (docs/model.md §11; deflection_max is max |dalpha|), its rate, alpha and alpha'."""
-    al, dal, aw, daw = fence_state(t, y, p, iw[IW_MODE])
+    al, dal, aw, daw = fence_state_in(t, y, p, iw[IW_MODE], aux)
     dev, rate = deflection(al, dal, aw, daw)
     return dev, rate, al, dal
 
@@ -103,8 +103,8 @@ def fence_peaks(p, w, t, h, theta_end):
     h] into w.qv[QV_B] (-inf where the step has none): the cubic through their values and rates
     at the step's ends (hermite_max), |dalpha| as the larger of dalpha's and -dalpha's."""
     span = theta_end * h
-    dv0, dr0, al0, da0 = fence_values(t, w.y, p, w.iw)
-    dv1, dr1, al1, da1 = fence_values(t + span, w.y1, p, w.iw)
+    dv0, dr0, al0, da0 = fence_values(t, w.y, p, w.iw, w.aux)
+    dv1, dr1, al1, da1 = fence_values(t + span, w.y1, p, w.iw, w.aux)
     qb = w.qv[QV_B]
     qb[Q_DEFL] = max(hermite_max(dv0, dr0 * span, dv1, dr1 * span),
                      hermite_max(-dv0, -dr0 * span, -dv1, -dr1 * span))

@@ -16,10 +16,10 @@ from fencesweep.model.scenes.contacts import (APART, FACE, N_SLOTS, PIVOT, PUSH,
                                               corner_fence_geometry, corner_rail_force, fence_in_load, pivot_local,
                                               tip_edge_force, tip_edge_normal, tip_local, tip_position,
                                               beyond_depth, side_edge)
-from fencesweep.model.scenes.cycle.layout import (AX_CA, AX_CPHI, AX_DAL, AX_DMAX, AX_DRIVE, AX_FRAME, AX_FX, AX_FY, AX_NF,
+from fencesweep.model.scenes.cycle.layout import (AX_CA, AX_CPHI, AX_DAL, AX_DMAX, AX_DRIVE, AX_FRAME, AX_FX, AX_FY, AX_KEPT, AX_NF,
                                                   AX_NR, AX_PDISS, AX_PFRIC, AX_SA, AX_SPHI, AX_TAU, AX_TQ, AX_TRIG_AL, AX_TRIG_PHI,
                                                   FM_KELVIN, FM_KINEMATIC, IW_CODE, IW_EDGE, IW_LOAD, IW_MODE,
-                                                  IW_RIDE, N_AUX)
+                                                  IW_RIDE, N_AUX, N_CTRL)
 from fencesweep.model.scenes.load import corner_motion
 
 
@@ -41,11 +41,21 @@ def fence_follows(y, mode, aw, daw):
 
 
 @kernel(inline=True)
+def fence_state_in(t, y, p, mode, aux):
+    """fence_state with the drive from drive_once: evaluated once at each t where aux holds it."""
+    aw, daw = drive_once(t, p, aux)
+    return fence_follows(y, mode, aw, daw)
+
+
+@kernel(inline=True)
 def drive_once(t, p, aux):
-    """drive_angle at t, from aux[AX_DRIVE:] when the last right-hand side that wrote aux was at the
-    same t (DOPRI5's sixth stage and its FSAL stage are both at t + h): the same values, once."""
+    """drive_angle at t, from aux when the last right-hand side that wrote aux was at the same t
+    (DOPRI5's sixth stage and its FSAL stage are both at t + h) or t is the step's start
+    (keep_drive): the same values, once. A function of t alone: kept values are exact."""
     if aux[AX_DRIVE] == t:
         return aux[AX_DRIVE + 1], aux[AX_DRIVE + 2]
+    if aux[AX_KEPT] == t:
+        return aux[AX_KEPT + 1], aux[AX_KEPT + 2]
     aw, daw = drive_angle(t, p)
     aux[AX_DRIVE] = t
     aux[AX_DRIVE + 1] = aw
@@ -54,9 +64,20 @@ def drive_once(t, p, aux):
 
 
 @kernel(inline=True)
+def keep_drive(t, p, aux):
+    """Keep the drive at t, the next step's start, in aux[AX_KEPT:]: the step's stages replace
+    aux[AX_DRIVE:], and its peaks read the fence at both its ends (peaks.fence_values)."""
+    aw, daw = drive_once(t, p, aux)
+    aux[AX_KEPT] = t
+    aux[AX_KEPT + 1] = aw
+    aux[AX_KEPT + 2] = daw
+
+
+@kernel(inline=True)
 def forget_drive(aux):
     """No drive kept in aux: the next drive_once evaluates it (each cycle's drive is its own)."""
     aux[AX_DRIVE] = math.nan
+    aux[AX_KEPT] = math.nan
 
 
 @kernel(inline=True)
@@ -286,5 +307,6 @@ def rhs(t, y, p, iw, dy, aux):
     fence_rhs(mode, al, dal, aw, daw, tau, p, dy)
 
 
-#: one step of the integrator with this right-hand side (kernel/rk.py stepper)
-step = rk.stepper(rhs, "cycle_step")
+#: one step of the integrator with this right-hand side (kernel/rk.py stepper), which reads the
+#: first N_CTRL components of the state: the energies (the rest) are quadratures, in no stage
+step = rk.stepper(rhs, "cycle_step", N_CTRL)

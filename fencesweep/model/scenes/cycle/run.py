@@ -28,7 +28,7 @@ from fencesweep.model.scenes.cycle.layout import (IW_CODE, IW_LOAD, A_DMAX, A_EX
                                                   QV_0, QV_1, QV_RATE, Q_DEFL)
 from fencesweep.model.scenes.cycle.peaks import (quantities, quantities_from_aux, record_peaks, touch_in_step,
                                                  track_maxima)
-from fencesweep.model.scenes.cycle.rhs import rhs, step
+from fencesweep.model.scenes.cycle.rhs import keep_drive, rhs, step
 from fencesweep.model.scenes.cycle.slots import classify, classify_after_rhs, in_contact, new_push, releases
 
 
@@ -150,6 +150,7 @@ def move_on(p, w, t1, kind, edge1, h_next):
         w.r0[i] = w.r1[i]
     for i in range(N_STATE):
         w.y[i] = w.y1[i]
+    keep_drive(t1, p, w.aux)
     set_tolerance(p, w, h_next)
     return h_next
 
