@@ -202,14 +202,11 @@ def edge_depth_at_tip(si, hi, sj, hj, sgi, sgj, fl):
 
 
 @kernel()
-def under_tip_edge(y, hl, hw, fl, ca, sa, cphi, sphi, iw):
+def under_tip_edge(s0, h0, s1, h1, s2, h2, s3, h3, fl, iw):
     """The load edge that carries the under-tip point U (docs/model.md (5.7)): of the edges i
     (corners i, i + 1 mod 4) with one corner in the span (s < l) and one beyond (s >= l), the
-    one deeper at s = l (with the in-span corner's side). Returns (i, its depth there) or (-1, -inf)."""
-    s0, h0 = corner_s_h(0, y, hl, hw, ca, sa, cphi, sphi)
-    s1, h1 = corner_s_h(1, y, hl, hw, ca, sa, cphi, sphi)
-    s2, h2 = corner_s_h(2, y, hl, hw, ca, sa, cphi, sphi)
-    s3, h3 = corner_s_h(3, y, hl, hw, ca, sa, cphi, sphi)
+    one deeper at s = l (with the in-span corner's side); s_j, h_j: corner j's s along the fence
+    and h from its line (corner_s_h). Returns (i, its depth there) or (-1, -inf)."""
     if max(max(s0, s1), max(s2, s3)) < fl:
         return -1, -math.inf  # the load within the span: no edge runs on past the tip
     best = -1

@@ -15,7 +15,7 @@ from fencesweep.model import layout as Lp
 from fencesweep.model import results as Rs
 from fencesweep.model.drive import drive_angle
 from fencesweep.model.scenes.contacts import (APART, CLIPPED, FACE, N_SLOTS, PIVOT, PUSH, RAIL0, TIP,
-                                              corner_fence_geometry, corner_s_h, edge_margin, edge_point_rate, fence_in_load, next_code,
+                                              corner_fence_geometry, edge_margin, edge_point_rate, fence_in_load, next_code,
                                               pivot_local, tip_edge_normal, tip_gap, tip_local, tip_position,
                                               beyond_depth, side_edge, under_tip_edge)
 from fencesweep.model.scenes.cycle.layout import (AX_CA, AX_CPHI, AX_DAL, AX_FRAME, AX_SA, AX_SPHI, IW_CODE, IW_EDGE,
@@ -39,22 +39,30 @@ def corner_side(s, D, sg, fl):
 
 
 @kernel(inline=True)
-def corner_code(j, y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force):
-    """Corner j on the fence (§5.1) on its own: (code, D in the span or -inf, side memory at this state)."""
-    hl = 0.5 * p[Lp.LL]
-    hw = 0.5 * p[Lp.AA]
-    fl = p[Lp.FL]
-    rx, ry, gx, gy, gvx, gvy = corner_motion(j, y, hl, hw, cphi, sphi)
+def corner_geometry(j, y, p, iw, ca, sa, dal, cphi, sphi):
+    """Corner j at state y (docs/model.md (1.4), (5.1), (5.3), (5.11)): (s along the fence, h from
+    its line, D = -sigma h, D', x_G, y_G, y_G'); the slots' classification forms it once for all
+    that read it (corner_geometries)."""
+    rx, ry, gx, gy, gvx, gvy = corner_motion(j, y, 0.5 * p[Lp.LL], 0.5 * p[Lp.AA], cphi, sphi)
     s, D, Dd = corner_fence_geometry(gx, gy, gvx, gvy, ca, sa, dal, iw[j])
-    c = next_code(iw[IW_CODE + j], D, Dd, s >= 0.0 and s <= fl, p[Lp.KC], p[Lp.CD], p[Lp.LAW], d_gap, d_force)
-    return c, D if (s >= 0.0 and s <= fl) else -math.inf, corner_side(s, D, iw[j], fl)
+    return s, -gx * sa + gy * ca, D, Dd, gx, gy, gvy
 
 
 @kernel(inline=True)
-def corner_side_at(j, y, p, iw, ca, sa, cphi, sphi):
-    """Corner j's side memory (5.2) at this state, from its position alone."""
-    s, h = corner_s_h(j, y, 0.5 * p[Lp.LL], 0.5 * p[Lp.AA], ca, sa, cphi, sphi)
-    return corner_side(s, -iw[j] * h, iw[j], p[Lp.FL])
+def corner_geometries(y, p, iw, ca, sa, dal, cphi, sphi):
+    """corner_geometry of the four corners, a tuple of four."""
+    return (corner_geometry(0, y, p, iw, ca, sa, dal, cphi, sphi), corner_geometry(1, y, p, iw, ca, sa, dal, cphi, sphi),
+            corner_geometry(2, y, p, iw, ca, sa, dal, cphi, sphi), corner_geometry(3, y, p, iw, ca, sa, dal, cphi, sphi))
+
+
+@kernel(inline=True)
+def corner_code(j, geo, p, iw, d_gap, d_force):
+    """Corner j on the fence (§5.1) on its own, from its corner_geometry: (code, D in the span or
+    -inf, side memory at this state)."""
+    s, D, Dd = geo[0], geo[2], geo[3]
+    fl = p[Lp.FL]
+    c = next_code(iw[IW_CODE + j], D, Dd, s >= 0.0 and s <= fl, p[Lp.KC], p[Lp.CD], p[Lp.LAW], d_gap, d_force)
+    return c, D if (s >= 0.0 and s <= fl) else -math.inf, corner_side(s, D, iw[j], fl)
 
 
 @kernel(inline=True)
@@ -141,7 +149,7 @@ def least_edge(e_lo, e_hi, ax, ay, bx, by, hl, hw, m_face, d_gap):
 
 
 @kernel()
-def manifold(y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force):
+def manifold(y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force, geo):
     """The fence's contact manifold with the load (docs/model.md (5.7)). The bodies touch where the
     fence's segment enters the load (fence_in_load, the load grown by the hysteresis). The axis is
     the one of least penetration among the fence's face (the deepest of the load's corners in the
@@ -149,7 +157,8 @@ def manifold(y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force):
     the state alone: the face's measure is biased by CONTACT_HYSTERESIS l, in its favour while one
     of its corners is in contact, against it when U is its only point. Its points push: the face's
     corners and U, or one end on the edge. Returns the codes of corners 0-3 on the fence, TIP,
-    PIVOT, the tag (an edge e, or FACE + U's edge + 4 x its depth's branch) and the corners' sides (5.2)."""
+    PIVOT, the tag (an edge e, or FACE + U's edge + 4 x its depth's branch) and the corners' sides (5.2).
+    geo: the corners' corner_geometries at this state."""
     hl = 0.5 * p[Lp.LL]
     hw = 0.5 * p[Lp.AA]
     cur_tag = iw[IW_EDGE]
@@ -161,14 +170,16 @@ def manifold(y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force):
     ax, ay = olx + lo * (tlx - olx), oly + lo * (tly - oly)  # the ends of the fence's part inside the load
     bx, by = olx + hi * (tlx - olx), oly + hi * (tly - oly)
     if not (lo <= hi and inside_all(e_lo, e_hi, ax, ay, bx, by, hl, hw, -d_gap)):
-        return (APART, APART, APART, APART, APART, APART, cur_tag, corner_side_at(0, y, p, iw, ca, sa, cphi, sphi),
-                corner_side_at(1, y, p, iw, ca, sa, cphi, sphi), corner_side_at(2, y, p, iw, ca, sa, cphi, sphi),
-                corner_side_at(3, y, p, iw, ca, sa, cphi, sphi))  # the fence misses the load
-    c0, D0, s0 = corner_code(0, y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force)
-    c1, D1, s1 = corner_code(1, y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force)
-    c2, D2, s2 = corner_code(2, y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force)
-    c3, D3, s3 = corner_code(3, y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force)
-    ui, d_own = under_tip_edge(y, hl, hw, p[Lp.FL], ca, sa, cphi, sphi, iw)
+        fl = p[Lp.FL]
+        return (APART, APART, APART, APART, APART, APART, cur_tag, corner_side(geo[0][0], geo[0][2], iw[0], fl),
+                corner_side(geo[1][0], geo[1][2], iw[1], fl), corner_side(geo[2][0], geo[2][2], iw[2], fl),
+                corner_side(geo[3][0], geo[3][2], iw[3], fl))  # the fence misses the load
+    c0, D0, s0 = corner_code(0, geo[0], p, iw, d_gap, d_force)
+    c1, D1, s1 = corner_code(1, geo[1], p, iw, d_gap, d_force)
+    c2, D2, s2 = corner_code(2, geo[2], p, iw, d_gap, d_force)
+    c3, D3, s3 = corner_code(3, geo[3], p, iw, d_gap, d_force)
+    ui, d_own = under_tip_edge(geo[0][0], geo[0][1], geo[1][0], geo[1][1], geo[2][0], geo[2][1], geo[3][0],
+                               geo[3][1], p[Lp.FL], iw)
     bias = NU.CONTACT_HYSTERESIS * p[Lp.FL] * (-1.0 if (c0 != APART or c1 != APART or c2 != APART or c3 != APART) else 1.0)
     m_face = max(max(D0, D1), max(max(D2, D3), under_tip_measure(ui, d_own, e_hi, bx, by, hl, hw))) + bias
     axis, _, piv = least_edge(e_lo, e_hi, ax, ay, bx, by, hl, hw, m_face, d_gap)
@@ -279,15 +290,13 @@ def classify_in(y, p, iw, codes, gaps, rates, tags, ca, sa, dal, cphi, sphi):
     the rails' codes, every slot's gap; returns the manifold's tag."""
     d_gap = NU.CONTACT_HYSTERESIS * p[Lp.FL]
     d_force = NU.CONTACT_HYSTERESIS * p[Lp.FFORCE]
+    geo = corner_geometries(y, p, iw, ca, sa, dal, cphi, sphi)  # each corner's once: the manifold, gaps, rails
     (codes[0], codes[1], codes[2], codes[3], codes[TIP], codes[PIVOT], tag,
-     tags[0], tags[1], tags[2], tags[3]) = manifold(y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force)
+     tags[0], tags[1], tags[2], tags[3]) = manifold(y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force, geo)
     tags[TIP] = tag
     tags[PIVOT] = tag
-    hl = 0.5 * p[Lp.LL]
-    hw = 0.5 * p[Lp.AA]
-    for j in range(4):  # each corner's motion once: its gap on the fence, its rail slot
-        rx, ry, gx, gy, gvx, gvy = corner_motion(j, y, hl, hw, cphi, sphi)
-        s, D, Dd = corner_fence_geometry(gx, gy, gvx, gvy, ca, sa, dal, iw[j])
+    for j in range(4):  # its gap on the fence, its rail slot
+        _, _, D, Dd, gx, gy, gvy = geo[j]
         gaps[j] = -D
         rates[j] = -Dd
         k = RAIL0 + j
@@ -307,7 +316,8 @@ def changed_at(mask, y, p, iw, ca, sa, dal, cphi, sphi):
     d_gap = NU.CONTACT_HYSTERESIS * p[Lp.FL]
     d_force = NU.CONTACT_HYSTERESIS * p[Lp.FFORCE]
     if mask & FENCE_BITS:
-        c0, c1, c2, c3, ct, cp, tag, s0, s1, s2, s3 = manifold(y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force)
+        c0, c1, c2, c3, ct, cp, tag, s0, s1, s2, s3 = manifold(y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force,
+                                                               corner_geometries(y, p, iw, ca, sa, dal, cphi, sphi))
         if ((mask & 1 and slot_changed(0, c0, s0, iw)) or (mask & 2 and slot_changed(1, c1, s1, iw))
                 or (mask & 4 and slot_changed(2, c2, s2, iw)) or (mask & 8 and slot_changed(3, c3, s3, iw))
                 or (mask & (1 << TIP) and slot_changed(TIP, ct, tag, iw))
