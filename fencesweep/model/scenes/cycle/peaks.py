@@ -275,13 +275,15 @@ def touch_changes(p, w, t, h, theta_end, release):
     output by bisection (events are located inside the step, §9). A release that ends a step
     begun without a touch may have had one inside it (a light re-contact of ~0.2 N, pushing and
     letting go within a step): the force's maximum in the step is searched (peak_of), and a
-    touch there is noted, begun and ended."""
+    touch there is noted, begun and ended, judged by the force there from a step of the method
+    (peak_value), the value peak_force reads: the dense output's own, less accurate, could put a
+    touch above the floor that peak_force puts below it."""
     was = w.acc[A_TOUCH] != 0.0
     if release and not was:
         ensure_dense(p, w, h)
-        th, qm = peak_of((t, h, w.y, w.Q, p, w.iw, w.tmp, w.auxs, w.dy, w.qv[QV_S], Q_NF), 0.0, theta_end,
+        th, _ = peak_of((t, h, w.y, w.Q, p, w.iw, w.tmp, w.auxs, w.dy, w.qv[QV_S], Q_NF), 0.0, theta_end,
                          NU.PEAK_TOL)
-        if touching(qm, p):
+        if touching(peak_value(p, w, t, h, th, Q_NF), p):
             note_touch(t + th * h, True, w.acc)
             note_touch(t + theta_end * h, False, w.acc)
         return
