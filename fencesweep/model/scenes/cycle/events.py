@@ -16,7 +16,7 @@ from fencesweep.model import layout as Lp
 from fencesweep.model.scenes.contacts import APART, N_SLOTS
 from fencesweep.model.scenes.cycle.layout import IW_CODE, N_CTRL, N_STATE
 from fencesweep.model.scenes.cycle.rhs import step
-from fencesweep.model.scenes.cycle.slots import (FENCE_BITS, changed_at, changed_mask, classify, frame_near, releases,
+from fencesweep.model.scenes.cycle.slots import (FENCE_BITS, changed_at, changed_mask, classify, frame_at, releases,
                                                  slot_changed, slot_gap)
 from fencesweep.model.scenes.load import outcome_margin
 
@@ -24,18 +24,18 @@ from fencesweep.model.scenes.load import outcome_margin
 @kernel()
 def mask_changed(ctx, theta):
     """Predicate for search.bisect: has any slot in ctx's mask changed at theta?"""
-    t0, h, y0, Q, p, iw, tmp, aux, mask = ctx
+    t0, h, y0, Q, p, iw, tmp, mask = ctx
     rk.dense_eval(y0, Q, theta, tmp, N_CTRL)
-    ca, sa, dal, cphi, sphi = frame_near(t0 + theta * h, tmp, p, iw, aux)
+    ca, sa, dal, cphi, sphi = frame_at(t0 + theta * h, tmp, p, iw)
     return changed_at(mask, tmp, p, iw, ca, sa, dal, cphi, sphi)
 
 
 @kernel()
 def neg_gap(ctx, theta):
     """-gap of one slot at theta (search.peak_max of it is the gap's minimum)."""
-    t0, h, y0, Q, p, iw, tmp, aux, k = ctx
+    t0, h, y0, Q, p, iw, tmp, k = ctx
     rk.dense_eval(y0, Q, theta, tmp, N_CTRL)
-    ca, sa, dal, cphi, sphi = frame_near(t0 + theta * h, tmp, p, iw, aux)
+    ca, sa, dal, cphi, sphi = frame_at(t0 + theta * h, tmp, p, iw)
     g, r = slot_gap(k, tmp, p, iw, ca, sa, dal, cphi, sphi)
     return -g
 
@@ -56,9 +56,9 @@ def outcome_hit(kind, y, p):
 def gap_crossed(ctx, theta):
     """Predicate for search.bisect: has the gap of one slot changed sign from its sign at the
     step's start (g0 > 0 or not) by theta?"""
-    t0, h, y0, Q, p, iw, tmp, aux, k, closed0 = ctx
+    t0, h, y0, Q, p, iw, tmp, k, closed0 = ctx
     rk.dense_eval(y0, Q, theta, tmp, N_CTRL)
-    ca, sa, dal, cphi, sphi = frame_near(t0 + theta * h, tmp, p, iw, aux)
+    ca, sa, dal, cphi, sphi = frame_at(t0 + theta * h, tmp, p, iw)
     g, r = slot_gap(k, tmp, p, iw, ca, sa, dal, cphi, sphi)
     return (g <= 0.0) != closed0
 
@@ -125,9 +125,9 @@ def crossing_theta(p, w, t, h, k, tol):
     change located on the dense output (search.bisect), and the slot's code read on the side of
     it where the gap is closed."""
     closed0 = not (w.g0[k] > 0.0)
-    lo, hi = find_crossing((t, h, w.y, w.Q, p, w.iw, w.tmp, w.auxs, k, closed0), 0.0, 1.0, tol)
+    lo, hi = find_crossing((t, h, w.y, w.Q, p, w.iw, w.tmp, k, closed0), 0.0, 1.0, tol)
     th = lo if closed0 else hi
-    if mask_changed((t, h, w.y, w.Q, p, w.iw, w.tmp, w.auxs, 1 << k), th):
+    if mask_changed((t, h, w.y, w.Q, p, w.iw, w.tmp, 1 << k), th):
         return th
     return 2.0
 
@@ -166,8 +166,8 @@ def graze_theta(p, w, t, h):
         if not (graze_candidate(k, w.iw, w.codes1, w.g0, w.r0, w.g1, w.r1)
                 or (long_step(p, h) and dip_candidate(k, w.iw, w.codes1, w.g0, w.r0, w.g1, w.r1, h))):
             continue
-        th, ng = min_gap((t, h, w.y, w.Q, p, w.iw, w.tmp, w.auxs, k), 0.0, 1.0, NU.PEAK_TOL)
-        if ng > 0.0 and th < best and mask_changed((t, h, w.y, w.Q, p, w.iw, w.tmp, w.auxs, 1 << k), th):
+        th, ng = min_gap((t, h, w.y, w.Q, p, w.iw, w.tmp, k), 0.0, 1.0, NU.PEAK_TOL)
+        if ng > 0.0 and th < best and mask_changed((t, h, w.y, w.Q, p, w.iw, w.tmp, 1 << k), th):
             best = th
             slot = k
     return best, slot
@@ -221,7 +221,7 @@ def find_event(p, w, t, h, exited):
     kind = 0
     if mask != 0:
         ensure_dense(p, w, h)
-        theta = find_change((t, h, w.y, w.Q, p, w.iw, w.tmp, w.auxs, mask), 0.0, hi, tol)[1]
+        theta = find_change((t, h, w.y, w.Q, p, w.iw, w.tmp, mask), 0.0, hi, tol)[1]
         kind = 1
     if not exited:
         for oc in range(2):
@@ -252,7 +252,7 @@ def located(p, w, t, h, lo, hi, Q2, mask):
     """The first change of a slot in mask in [lo, hi] (fractions of h) on the dense output Q2
     of the step [t, t + hi h], just past it (search.bisect)."""
     sh = hi * h
-    return hi * find_change((t, sh, w.y, Q2, p, w.iw, w.tmp, w.auxs, mask), lo / hi, 1.0,
+    return hi * find_change((t, sh, w.y, Q2, p, w.iw, w.tmp, mask), lo / hi, 1.0,
                             NU.EVENT_TOL * max(1.0, t) / sh)[1]
 
 

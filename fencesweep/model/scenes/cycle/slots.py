@@ -11,7 +11,6 @@ import math
 
 from fencesweep.kernel import numerics as NU
 from fencesweep.kernel.jit import kernel
-from fencesweep.kernel.trig import cos_sin_near
 from fencesweep.model import layout as Lp
 from fencesweep.model import results as Rs
 from fencesweep.model.drive import drive_angle
@@ -19,8 +18,7 @@ from fencesweep.model.scenes.contacts import (APART, CLIPPED, FACE, N_SLOTS, PIV
                                               corner_fence_geometry, edge_margin, edge_point_rate, fence_in_load, next_code,
                                               pivot_local, tip_edge_normal, tip_gap, tip_local, tip_position,
                                               beyond_depth, side_edge, under_tip_edge)
-from fencesweep.model.scenes.cycle.layout import (AX_CA, AX_CPHI, AX_DAL, AX_FRAME, AX_SA, AX_SPHI, AX_TRIG_AL, AX_TRIG_PHI,
-                                                  IW_CODE, IW_EDGE,
+from fencesweep.model.scenes.cycle.layout import (AX_CA, AX_CPHI, AX_DAL, AX_FRAME, AX_SA, AX_SPHI, IW_CODE, IW_EDGE,
                                                   IW_LOAD, IW_MODE)
 from fencesweep.model.scenes.cycle.rhs import drive_once, fence_follows
 from fencesweep.model.scenes.load import corner_motion
@@ -247,18 +245,6 @@ def frame_at(t, y, p, iw):
     cos and sin of phi."""
     aw, daw = drive_angle(t, p)
     return frame_of(y, iw, aw, daw)
-
-
-@kernel(inline=True)
-def frame_near(t, y, p, iw, aux):
-    """frame_at with the sines and cosines from those of the last angles aux holds exactly
-    (kernel/trig.py cos_sin_near): a search's points lie within one step, where the angles move
-    by little (numerics.TRIG_NEAR)."""
-    aw, daw = drive_angle(t, p)
-    al, dal, aw, daw = fence_follows(y, iw[IW_MODE], aw, daw)
-    ca, sa = cos_sin_near(al, aux, AX_TRIG_AL)
-    cphi, sphi = cos_sin_near(y[2], aux, AX_TRIG_PHI)
-    return ca, sa, dal, cphi, sphi
 
 
 @kernel(inline=True)
