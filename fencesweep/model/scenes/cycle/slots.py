@@ -56,6 +56,12 @@ def corner_geometries(y, p, iw, ca, sa, dal, cphi, sphi):
 
 
 @kernel(inline=True)
+def side_of(j, geo, p, iw):
+    """Corner j's side memory (5.2) at this state, from its corner_geometry."""
+    return corner_side(geo[j][0], geo[j][2], iw[j], p[Lp.FL])
+
+
+@kernel(inline=True)
 def corner_code(j, geo, p, iw, d_gap, d_force):
     """Corner j on the fence (§5.1) on its own, from its corner_geometry: (code, D in the span or
     -inf, side memory at this state)."""
@@ -170,16 +176,13 @@ def manifold(y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force, geo):
     ax, ay = olx + lo * (tlx - olx), oly + lo * (tly - oly)  # the ends of the fence's part inside the load
     bx, by = olx + hi * (tlx - olx), oly + hi * (tly - oly)
     if not (lo <= hi and inside_all(e_lo, e_hi, ax, ay, bx, by, hl, hw, -d_gap)):
-        fl = p[Lp.FL]
-        return (APART, APART, APART, APART, APART, APART, cur_tag, corner_side(geo[0][0], geo[0][2], iw[0], fl),
-                corner_side(geo[1][0], geo[1][2], iw[1], fl), corner_side(geo[2][0], geo[2][2], iw[2], fl),
-                corner_side(geo[3][0], geo[3][2], iw[3], fl))  # the fence misses the load
+        return (APART, APART, APART, APART, APART, APART, cur_tag, side_of(0, geo, p, iw), side_of(1, geo, p, iw),
+                side_of(2, geo, p, iw), side_of(3, geo, p, iw))  # the fence misses the load
     c0, D0, s0 = corner_code(0, geo[0], p, iw, d_gap, d_force)
     c1, D1, s1 = corner_code(1, geo[1], p, iw, d_gap, d_force)
     c2, D2, s2 = corner_code(2, geo[2], p, iw, d_gap, d_force)
     c3, D3, s3 = corner_code(3, geo[3], p, iw, d_gap, d_force)
-    ui, d_own = under_tip_edge(geo[0][0], geo[0][1], geo[1][0], geo[1][1], geo[2][0], geo[2][1], geo[3][0],
-                               geo[3][1], p[Lp.FL], iw)
+    ui, d_own = under_tip_edge(geo, p[Lp.FL], iw)
     bias = NU.CONTACT_HYSTERESIS * p[Lp.FL] * (-1.0 if (c0 != APART or c1 != APART or c2 != APART or c3 != APART) else 1.0)
     m_face = max(max(D0, D1), max(max(D2, D3), under_tip_measure(ui, d_own, e_hi, bx, by, hl, hw))) + bias
     axis, _, piv = least_edge(e_lo, e_hi, ax, ay, bx, by, hl, hw, m_face, d_gap)
