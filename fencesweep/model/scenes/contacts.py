@@ -202,14 +202,11 @@ def edge_depth_at_tip(si, hi, sj, hj, sgi, sgj, fl):
 
 
 @kernel()
-def under_tip_edge(geo, fl, iw):
+def under_tip_edge(s0, h0, s1, h1, s2, h2, s3, h3, fl, iw):
     """The load edge that carries the under-tip point U (docs/model.md (5.7)): of the edges i
     (corners i, i + 1 mod 4) with one corner in the span (s < l) and one beyond (s >= l), the
-    one deeper at s = l (with the in-span corner's side); geo[j] begins with corner j's s along
-    the fence and h from its line (corner_s_h; slots.corner_geometry). Returns (i, its depth
-    there) or (-1, -inf)."""
-    s0, h0, s1, h1 = geo[0][0], geo[0][1], geo[1][0], geo[1][1]
-    s2, h2, s3, h3 = geo[2][0], geo[2][1], geo[3][0], geo[3][1]
+    one deeper at s = l (with the in-span corner's side); s_j, h_j: corner j's s along the fence
+    and h from its line (corner_s_h). Returns (i, its depth there) or (-1, -inf)."""
     if max(max(s0, s1), max(s2, s3)) < fl:
         return -1, -math.inf  # the load within the span: no edge runs on past the tip
     best = -1

@@ -56,6 +56,13 @@ def corner_geometries(y, p, iw, ca, sa, dal, cphi, sphi):
 
 
 @kernel(inline=True)
+def under_tip(geo, p, iw):
+    """contacts.under_tip_edge from the corners' corner_geometry."""
+    return under_tip_edge(geo[0][0], geo[0][1], geo[1][0], geo[1][1], geo[2][0], geo[2][1], geo[3][0], geo[3][1],
+                          p[Lp.FL], iw)
+
+
+@kernel(inline=True)
 def side_of(j, geo, p, iw):
     """Corner j's side memory (5.2) at this state, from its corner_geometry."""
     return corner_side(geo[j][0], geo[j][2], iw[j], p[Lp.FL])
@@ -182,7 +189,7 @@ def manifold(y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force, geo):
     c1, D1, s1 = corner_code(1, geo[1], p, iw, d_gap, d_force)
     c2, D2, s2 = corner_code(2, geo[2], p, iw, d_gap, d_force)
     c3, D3, s3 = corner_code(3, geo[3], p, iw, d_gap, d_force)
-    ui, d_own = under_tip_edge(geo, p[Lp.FL], iw)
+    ui, d_own = under_tip(geo, p, iw)
     bias = NU.CONTACT_HYSTERESIS * p[Lp.FL] * (-1.0 if (c0 != APART or c1 != APART or c2 != APART or c3 != APART) else 1.0)
     m_face = max(max(D0, D1), max(max(D2, D3), under_tip_measure(ui, d_own, e_hi, bx, by, hl, hw))) + bias
     axis, _, piv = least_edge(e_lo, e_hi, ax, ay, bx, by, hl, hw, m_face, d_gap)
