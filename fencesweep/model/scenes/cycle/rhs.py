@@ -42,27 +42,20 @@ def fence_follows(y, mode, aw, daw):
 
 @kernel(inline=True)
 def fence_state_in(t, y, p, mode, aux):
-    """fence_state with the drive kept in aux where it holds it at t (drive_kept)."""
-    aw, daw = drive_kept(t, p, aux)
+    """fence_state with the drive from drive_once: evaluated once at each t where aux holds it."""
+    aw, daw = drive_once(t, p, aux)
     return fence_follows(y, mode, aw, daw)
 
 
 @kernel(inline=True)
-def drive_kept(t, p, aux):
-    """drive_once, or the drive at the step's start where t is that (keep_drive): a function of t
-    alone, so kept values are exact. (A stage is never at the step's start: the right-hand side
-    asks drive_once alone.)"""
-    if aux[AX_KEPT] == t:
-        return aux[AX_KEPT + 1], aux[AX_KEPT + 2]
-    return drive_once(t, p, aux)
-
-
-@kernel(inline=True)
 def drive_once(t, p, aux):
-    """drive_angle at t, from aux[AX_DRIVE:] when the last right-hand side that wrote aux was at
-    the same t (DOPRI5's sixth stage and its FSAL stage are both at t + h): the same values, once."""
+    """drive_angle at t, from aux when the last right-hand side that wrote aux was at the same t
+    (DOPRI5's sixth stage and its FSAL stage are both at t + h) or t is the step's start
+    (keep_drive): the same values, once. A function of t alone: kept values are exact."""
     if aux[AX_DRIVE] == t:
         return aux[AX_DRIVE + 1], aux[AX_DRIVE + 2]
+    if aux[AX_KEPT] == t:
+        return aux[AX_KEPT + 1], aux[AX_KEPT + 2]
     aw, daw = drive_angle(t, p)
     aux[AX_DRIVE] = t
     aux[AX_DRIVE + 1] = aw
@@ -74,7 +67,7 @@ def drive_once(t, p, aux):
 def keep_drive(t, p, aux):
     """Keep the drive at t, the next step's start, in aux[AX_KEPT:]: the step's stages replace
     aux[AX_DRIVE:], and its peaks read the fence at both its ends (peaks.fence_values)."""
-    aw, daw = drive_kept(t, p, aux)
+    aw, daw = drive_once(t, p, aux)
     aux[AX_KEPT] = t
     aux[AX_KEPT + 1] = aw
     aux[AX_KEPT + 2] = daw
