@@ -25,7 +25,9 @@ typing meets them: for a first cycle, ~140 kernel functions, then the entry poin
     entry point if the helper is still at it, so that the two never compile one entry point
     of the cache at once. A plan function is claimed by whichever process starts it first (a
     file created exclusively); one that reaches a function the other has claimed waits for it
-    (this process, while the helper runs) or compiles it too (the helper);
+    (this process, while the helper runs) or compiles it too (the helper). A claim is a record,
+    never released, that the other process reads to know where to stop: a lock (filelock's),
+    released after the compile, would not keep it;
   * every wait ends after WAIT_LIMIT: the helper is then taken to be stuck and stopped, and this
     process compiles the rest itself;
   * at the end the helper is stopped and the directory removed: only the entry points stay
