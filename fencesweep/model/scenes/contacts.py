@@ -70,9 +70,15 @@ def friction_power(f, w):
 def corner_fence_geometry(gx, gy, gvx, gvy, ca, sa, dal, sg):
     """s = G.d along the fence, D = -sigma h (h = G.n), D' = -sigma (v_G.n - alpha' s)
     (docs/model.md (1.1), (5.1), (5.3))."""
-    s = gx * ca + gy * sa
-    h = -gx * sa + gy * ca
+    s, h = fence_coords(gx, gy, ca, sa)
     return s, -sg * h, -sg * ((-gvx * sa + gvy * ca) - dal * s)
+
+
+@kernel(inline=True)
+def fence_coords(gx, gy, ca, sa):
+    """A point G in the fence's frame (docs/model.md (1.1), (5.1)): s = G.d along the fence, h = G.n
+    from its line."""
+    return gx * ca + gy * sa, -gx * sa + gy * ca
 
 
 @kernel(inline=True)
@@ -184,9 +190,7 @@ def edge_point_rate(px, py, dx, dyy, nex, ney, vx, vy, om, dal):
 def corner_s_h(j, y, hl, hw, ca, sa, cphi, sphi):
     """Corner j's position along the fence s and distance from its line h (docs/model.md (5.1))."""
     rx, ry = corner_offset(j, hl, hw, cphi, sphi)
-    gx = y[0] + rx
-    gy = y[1] + ry
-    return gx * ca + gy * sa, -gx * sa + gy * ca
+    return fence_coords(y[0] + rx, y[1] + ry, ca, sa)
 
 
 @kernel(inline=True)

@@ -282,7 +282,7 @@ def touch_changes(p, w, t, h, theta_end, release):
     if release and not was:
         ensure_dense(p, w, h)
         th, _ = peak_of((t, h, w.y, w.Q, p, w.iw, w.tmp, w.auxs, w.dy, w.qv[QV_S], Q_NF), 0.0, theta_end,
-                         NU.PEAK_TOL)
+                        NU.PEAK_TOL)
         if touching(peak_value(p, w, t, h, th, Q_NF), p):
             note_touch(t + th * h, True, w.acc)
             note_touch(t + theta_end * h, False, w.acc)

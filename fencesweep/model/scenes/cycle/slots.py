@@ -15,7 +15,7 @@ from fencesweep.model import layout as Lp
 from fencesweep.model import results as Rs
 from fencesweep.model.drive import drive_angle
 from fencesweep.model.scenes.contacts import (APART, CLIPPED, FACE, N_SLOTS, PIVOT, PUSH, RAIL0, TIP,
-                                              corner_fence_geometry, edge_margin, edge_point_rate, fence_in_load, next_code,
+                                              corner_fence_geometry, edge_margin, edge_point_rate, fence_coords, fence_in_load, next_code,
                                               pivot_local, tip_edge_normal, tip_gap, tip_local, tip_position,
                                               beyond_depth, side_edge, under_tip_edge)
 from fencesweep.model.scenes.cycle.layout import (AX_CA, AX_CPHI, AX_DAL, AX_FRAME, AX_SA, AX_SPHI, IW_CODE, IW_EDGE,
@@ -45,7 +45,7 @@ def corner_geometry(j, y, p, iw, ca, sa, dal, cphi, sphi):
     that read it (corner_geometries)."""
     rx, ry, gx, gy, gvx, gvy = corner_motion(j, y, 0.5 * p[Lp.LL], 0.5 * p[Lp.AA], cphi, sphi)
     s, D, Dd = corner_fence_geometry(gx, gy, gvx, gvy, ca, sa, dal, iw[j])
-    return s, -gx * sa + gy * ca, D, Dd, gx, gy, gvy
+    return s, fence_coords(gx, gy, ca, sa)[1], D, Dd, gx, gy, gvy
 
 
 @kernel(inline=True)
