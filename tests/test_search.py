@@ -94,7 +94,7 @@ _find = S.bisector(_past, "test_bisect_past")
 
 @entry()
 def _locate(ctx, tol):
-    return _find(ctx, 0.0, 1.0, tol)
+    return _find(ctx, 0.0, 1.0, tol, 0.0, 1.0)
 
 
 @pytest.mark.parametrize("where", [0.0, 0.25, 1.0 / 3.0, 0.999999])
@@ -103,3 +103,53 @@ def test_bisect_brackets_the_event_to_the_tolerance(where):
     lo, hi = _locate(ctx, 1e-12)
     assert lo <= where <= hi and hi - lo <= 1e-12
     assert ctx[1] <= math.ceil(math.log2(1.0 / 1e-12)) + 1  # one halving a predicate call
+
+
+@entry()
+def _locate_knowing(ctx, tol, a, b):
+    return _find(ctx, 0.0, 1.0, tol, a, b)
+
+
+@pytest.mark.parametrize("where", [0.25, 1.0 / 3.0, 0.7])
+def test_bisect_that_knows_a_bracket_ends_bit_for_bit_where_it_would_with_fewer_calls(where):
+    """Given a False at a and True at b, the bisection's final bracket is the one it finds when it
+    evaluates every midpoint, and it evaluates only those inside (a, b)."""
+    full = np.array([where, 0.0])
+    lo, hi = _locate(full, 1e-12)
+    for half_width in (1e-3, 1e-9, 1e-12):
+        known = np.array([where, 0.0])
+        assert _locate_knowing(known, 1e-12, where - half_width, where + half_width) == (lo, hi)
+        assert known[1] <= max(0.0, math.log2(2.0 * half_width / 1e-12)) + 2, (half_width, known[1])
+        assert known[1] < full[1]
+
+
+@kernel()
+def _cubic(ctx, x):
+    ctx[1] += 1.0
+    return ctx[0] - x - 4.0 * x ** 3
+
+
+_root = S.root_finder(_cubic, "test_root_cubic")
+
+
+@entry()
+def _bracket(ctx, tol, max_evals):
+    return _root(ctx, 0.0, 1.0, _cubic(ctx, 0.0), _cubic(ctx, 1.0), tol, max_evals)
+
+
+@pytest.mark.parametrize("c", [0.01, 0.5, 2.0, 4.9])
+def test_root_brackets_a_sign_change_to_the_tolerance_in_few_evaluations(c):
+    """The Illinois method closes a bracket of the root of c - x - 4 x^3 on [0, 1] (q >= 0 at 0,
+    < 0 at 1) to 1e-12 in well under the bisection's 40 evaluations."""
+    ctx = np.array([c, 0.0])
+    a, b = _bracket(ctx, 1e-12, 40)
+    assert b - a <= 1e-12
+    assert c - a - 4.0 * a ** 3 >= 0.0 > c - b - 4.0 * b ** 3
+    assert ctx[1] - 2 <= 15, ctx[1]
+
+
+def test_root_stops_after_its_evaluations_with_a_bracket():
+    ctx = np.array([0.5, 0.0])
+    a, b = _bracket(ctx, 1e-12, 2)
+    assert ctx[1] - 2 == 2
+    assert 0.0 <= a < b <= 1.0 and 0.5 - a - 4.0 * a ** 3 >= 0.0 > 0.5 - b - 4.0 * b ** 3

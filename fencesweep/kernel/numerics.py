@@ -52,6 +52,10 @@ H_MAX_PER_PERIOD = 1.0 / 12.0
 #: [s] (relative to max(1, t)): 40 halvings of a 1e-2 s step; far below the 1 ms floor of the
 #: time results and the ~1e-6 s error of the dense output itself.
 EVENT_TOL = 1e-12
+#: At most this many evaluations of a slot's margin bracket a contact change before its
+#: bisection (events.known_range): the Illinois method closes the bracket to EVENT_TOL in ~6-10
+#: on a smooth margin; one that has not by then leaves the rest to the bisection.
+MARGIN_EVALS = 16
 
 #: A contact released inside a step (a PUSH slot that stops pushing) is located on the method's
 #: own flow, not on the step's dense output alone: the step's later stages lie past the kink

@@ -1,9 +1,10 @@
-"""Searches on a step's dense output: an event locator (bisection of a predicate) and a peak
-finder (Brent's search of a quantity's maximum). The predicate or quantity is a compiled
+"""Searches on a step's dense output: an event locator (bisection of a predicate), a root finder
+(the Illinois method, for a guess at an event from a quantity that changes sign with it) and a
+peak finder (Brent's search of a quantity's maximum). The predicate or quantity is a compiled
 function `f(ctx, theta)` of the fraction theta of the step and a tuple `ctx` the caller packs
 (the step's start, its dense output, the scene's parameters and work arrays): events and peaks
 are passed in as data, as scipy.integrate._ivp passes its event functions. `bisector(pred,
-name)` and `peak_finder(q, name)` compile the two templates with the scene's function bound
+name)`, `root_finder(q, name)` and `peak_finder(q, name)` compile the templates with the scene's function bound
 (kernel/jit.py specialise).
 """
 from __future__ import annotations
@@ -12,7 +13,8 @@ import math
 
 from fencesweep.kernel.jit import kernel, specialise
 
-#: the scene's predicate in `bisect` and quantity in `peak_max`, bound by bisector / peak_finder
+#: the scene's predicate in `bisect`, quantity in `root` and `peak_max`, bound by bisector,
+#: root_finder and peak_finder
 PRED = QUANTITY = None
 
 
@@ -26,17 +28,55 @@ def peak_finder(q, name: str):
     return specialise(peak_max, name, QUANTITY=q)
 
 
-def bisect(ctx, lo, hi, tol):
+def root_finder(q, name: str):
+    """`root` with the quantity `q`, compiled as the kernel function `name`."""
+    return specialise(root, name, QUANTITY=q)
+
+
+def bisect(ctx, lo, hi, tol, a, b):
     """Event location: PRED(ctx, lo) is False and PRED(ctx, hi) is True; returns the final
-    bracket (lo, hi), hi - lo <= tol, with the event in it (hi is just past the event). A
-    template: PRED is the scene's (`bisector`)."""
+    bracket (lo, hi), hi - lo <= tol, with the event in it (hi is just past the event). The
+    caller may know more: PRED is False at a and True at b (a = lo, b = hi: nothing more), so
+    that it is evaluated only at the midpoints inside (a, b), the others taken as False at or
+    before a and True at or after b. For a PRED that changes once on [lo, hi] the bracket is the
+    same, bit for bit, as with every midpoint evaluated. A template: PRED is the scene's
+    (`bisector`)."""
     while hi - lo > tol:
         mid = 0.5 * (lo + hi)
-        if PRED(ctx, mid):
+        if mid >= b or (mid > a and PRED(ctx, mid)):
             hi = mid
         else:
             lo = mid
     return lo, hi
+
+
+def root(ctx, a, b, qa, qb, tol, max_evals):
+    """A bracket [a, b] of a sign change of QUANTITY(ctx, theta) from qa >= 0 at a to qb < 0 at b,
+    shrunk by the Illinois method (regula falsi, the weight of an end kept twice in a row
+    halved: Dahlquist & Bjorck, Numerical Methods, 1974, §6.2) until b - a <= tol or after
+    max_evals evaluations; returns (a, b). An estimate within tol / 2 of an end is moved to tol / 2
+    from it, so that once the estimates converge, the next lands past the root and closes the
+    bracket (as Brent's zeroin does). A template: QUANTITY is the scene's (`root_finder`)."""
+    kept = 0  # +1: a was kept by the last evaluation, -1: b was
+    for _ in range(max_evals):
+        if b - a <= tol:
+            break
+        c = (a * qb - b * qa) / (qb - qa)
+        if not (c > a and c < b):
+            c = 0.5 * (a + b)
+        c = min(max(c, a + 0.5 * tol), b - 0.5 * tol)  # an estimate at an end steps over the root
+        qc = QUANTITY(ctx, c)
+        if qc >= 0.0:
+            a, qa = c, qc
+            if kept == -1:
+                qb *= 0.5
+            kept = -1
+        else:
+            b, qb = c, qc
+            if kept == 1:
+                qa *= 0.5
+            kept = 1
+    return a, b
 
 
 #: (3 - sqrt 5) / 2: the golden-section fraction of Brent's search

@@ -50,6 +50,19 @@ def next_code(cur, D, Dd, in_span, kc, cd, law, d_gap, d_force):
 
 
 @kernel(inline=True)
+def code_margin(cur, D, Dd, kc, cd, law, d_gap, d_force):
+    """How far a slot in its span is from leaving its code `cur` at penetration D and rate Dd:
+    >= 0 while next_code keeps it, < 0 once it changes (docs/model.md (4.9)): -D apart; D + d_gap
+    and the Kelvin force's distance from -d_force (PUSH) or d_force (CLIPPED), the nearer of
+    the two, touching. It changes sign where the code changes: events.py brackets an event
+    with it before the bisection (search.root)."""
+    if cur == APART:
+        return -D
+    n = kelvin_force(max(D, 0.0), Dd, kc, cd, law)[0]
+    return min(D + d_gap, n + d_force if cur == PUSH else d_force - n)
+
+
+@kernel(inline=True)
 def damping_power(n, n_el, Dd):
     """The power one contact dissipates, (N - N_el) D' [W] (docs/model.md (11.7)): its damping
     while pushing; -N_el D' while CLIPPED (N = 0). add_contact sums it over the contacts, and

@@ -112,7 +112,7 @@ def accept(p, w, t, h, t1, err, h_next):
     ctx = (w.y, w.Q, p, w.iw, w.tmp, w.dy, w.aux)
     theta = 1.0
     if released(ctx, 1.0):
-        theta = find_release(ctx, 0.0, 1.0, NU.EVENT_TOL * w.acc[R_TP] / h)[1]
+        theta = find_release(ctx, 0.0, 1.0, NU.EVENT_TOL * w.acc[R_TP] / h, 0.0, 1.0)[1]
     w.acc[R_PEAK] = step_peak(ctx, theta, w.acc[R_PEAK])
     rk.dense_eval(w.y, w.Q, theta, w.y1, N_STATE)
     D1, Dd1 = penetration(w.y1, p, w.iw[IW_RIGID] != 0)

@@ -11,13 +11,13 @@ from __future__ import annotations
 from fencesweep.kernel import numerics as NU
 from fencesweep.kernel import rk
 from fencesweep.kernel.jit import kernel
-from fencesweep.kernel.search import bisector, hermite_max, peak_finder
+from fencesweep.kernel.search import bisector, hermite_max, peak_finder, root_finder
 from fencesweep.model import layout as Lp
 from fencesweep.model.scenes.contacts import APART, N_SLOTS
 from fencesweep.model.scenes.cycle.layout import IW_CODE, N_CTRL, N_STATE
 from fencesweep.model.scenes.cycle.rhs import step
-from fencesweep.model.scenes.cycle.slots import (FENCE_BITS, changed_at, changed_mask, classify, frame_at, releases,
-                                                 slot_changed, slot_gap)
+from fencesweep.model.scenes.cycle.slots import (FENCE_BITS, changed_at, changed_mask, classify, frame_at, margin_slot,
+                                                 releases, slot_changed, slot_gap, slot_margin)
 from fencesweep.model.scenes.load import outcome_margin
 
 
@@ -71,11 +71,56 @@ def outcome_reached(ctx, theta):
     return outcome_hit(kind, tmp, p)
 
 
+@kernel()
+def margin_at(ctx, theta):
+    """slots.slot_margin of one corner slot at theta (for search.root)."""
+    t0, h, y0, Q, p, iw, tmp, k = ctx
+    rk.dense_eval(y0, Q, theta, tmp, N_CTRL)
+    ca, sa, dal, cphi, sphi = frame_at(t0 + theta * h, tmp, p, iw)
+    return slot_margin(k, tmp, p, iw, ca, sa, dal, cphi, sphi)
+
+
 #: the searches on the dense output (kernel/search.py), bound to the predicates and the gap above
 find_change = bisector(mask_changed, "cycle_find_change")
 find_outcome = bisector(outcome_reached, "cycle_find_outcome")
 find_crossing = bisector(gap_crossed, "cycle_find_crossing")
 min_gap = peak_finder(neg_gap, "cycle_min_gap")
+find_margin = root_finder(margin_at, "cycle_find_margin")
+
+
+@kernel()
+def known_range(t, h, y0, Q, p, iw, tmp, lo, hi, mask, k, tol):
+    """Where the change of a slot in mask inside [lo, hi] (fractions of the step [t, t + h] with
+    dense output Q) is taken to lie before its bisection (search.bisect's (a, b)): the sign
+    change of fence corner k's margin (slots.slot_margin; k from slots.margin_slot, -1: none)
+    bracketed by search.root to tol, its ends then tested by the bisection's own predicate. A
+    change the margin does not make (the span, the manifold, another slot) fails that test, and
+    the bracket is cut at the end that failed. The bisection then ends where it would have
+    without it, bit for bit, when the predicate changes once in [lo, hi]; where it changes
+    more than once, or flickers with rounding at the threshold, it may end at another change.
+    Returns (lo, hi) when nothing is known."""
+    if k < 0:
+        return lo, hi
+    ctx = (t, h, y0, Q, p, iw, tmp, k)
+    q_lo = margin_at(ctx, lo)
+    q_hi = margin_at(ctx, hi)
+    if not (q_lo >= 0.0 and q_hi < 0.0):
+        return lo, hi
+    a, b = find_margin(ctx, lo, hi, q_lo, q_hi, tol, NU.MARGIN_EVALS)
+    test = (t, h, y0, Q, p, iw, tmp, mask)
+    if a > lo and mask_changed(test, a):
+        return lo, a
+    if b < hi and not mask_changed(test, b):
+        return b, hi
+    return a, b
+
+
+@kernel(inline=True)
+def locate_change(t, h, y0, Q, p, iw, tmp, lo, hi, mask, k, tol):
+    """The first change of a slot in mask in [lo, hi] on the dense output Q of the step [t, t + h]:
+    the bisection's final bracket (search.bisect), from what known_range knows."""
+    a, b = known_range(t, h, y0, Q, p, iw, tmp, lo, hi, mask, k, tol)
+    return find_change((t, h, y0, Q, p, iw, tmp, mask), lo, hi, tol, a, b)
 
 
 @kernel(inline=True)
@@ -125,7 +170,7 @@ def crossing_theta(p, w, t, h, k, tol):
     change located on the dense output (search.bisect), and the slot's code read on the side of
     it where the gap is closed."""
     closed0 = not (w.g0[k] > 0.0)
-    lo, hi = find_crossing((t, h, w.y, w.Q, p, w.iw, w.tmp, k, closed0), 0.0, 1.0, tol)
+    lo, hi = find_crossing((t, h, w.y, w.Q, p, w.iw, w.tmp, k, closed0), 0.0, 1.0, tol, 0.0, 1.0)
     th = lo if closed0 else hi
     if mask_changed((t, h, w.y, w.Q, p, w.iw, w.tmp, 1 << k), th):
         return th
@@ -221,13 +266,13 @@ def find_event(p, w, t, h, exited):
     kind = 0
     if mask != 0:
         ensure_dense(p, w, h)
-        theta = find_change((t, h, w.y, w.Q, p, w.iw, w.tmp, mask), 0.0, hi, tol)[1]
+        theta = locate_change(t, h, w.y, w.Q, p, w.iw, w.tmp, 0.0, hi, mask, margin_slot(w.iw, w.codes1, mask), tol)[1]
         kind = 1
     if not exited:
         for oc in range(2):
             if outcome_hit(oc, w.y1, p):
                 ensure_dense(p, w, h)
-                th = find_outcome((w.y, w.Q, p, w.tmp, oc), 0.0, 1.0, tol)[1]
+                th = find_outcome((w.y, w.Q, p, w.tmp, oc), 0.0, 1.0, tol, 0.0, 1.0)[1]
                 if th <= theta:
                     theta = th
                     kind = 2 + oc
@@ -252,8 +297,8 @@ def located(p, w, t, h, lo, hi, Q2, mask):
     """The first change of a slot in mask in [lo, hi] (fractions of h) on the dense output Q2
     of the step [t, t + hi h], just past it (search.bisect)."""
     sh = hi * h
-    return hi * find_change((t, sh, w.y, Q2, p, w.iw, w.tmp, mask), lo / hi, 1.0,
-                            NU.EVENT_TOL * max(1.0, t) / sh)[1]
+    return hi * locate_change(t, sh, w.y, Q2, p, w.iw, w.tmp, lo / hi, 1.0, mask, margin_slot(w.iw, w.codes1, mask),
+                              NU.EVENT_TOL * max(1.0, t) / sh)[1]
 
 
 @kernel()

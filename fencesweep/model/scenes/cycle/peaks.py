@@ -294,5 +294,5 @@ def touch_changes(p, w, t, h, theta_end, release):
         return
     ensure_dense(p, w, h)
     tol = NU.EVENT_TOL * max(1.0, t) / h
-    th = find_touch((t, h, w.y, w.Q, p, w.iw, w.tmp, w.auxs, w.dy, w.qv[QV_S], was), 0.0, theta_end, tol)[1]
+    th = find_touch((t, h, w.y, w.Q, p, w.iw, w.tmp, w.auxs, w.dy, w.qv[QV_S], was), 0.0, theta_end, tol, 0.0, theta_end)[1]
     note_touch(t + th * h, not was, w.acc)

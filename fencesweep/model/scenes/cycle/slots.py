@@ -15,7 +15,7 @@ from fencesweep.model import layout as Lp
 from fencesweep.model import results as Rs
 from fencesweep.model.drive import drive_angle
 from fencesweep.model.scenes.contacts import (APART, CLIPPED, FACE, N_SLOTS, PIVOT, PUSH, RAIL0, TIP,
-                                              corner_fence_geometry, edge_margin, edge_point_rate, fence_coords, fence_in_load, next_code,
+                                              code_margin, corner_fence_geometry, edge_margin, edge_point_rate, fence_coords, fence_in_load, next_code,
                                               pivot_local, tip_edge_normal, tip_gap, tip_local, tip_position,
                                               beyond_depth, side_edge, under_tip_edge)
 from fencesweep.model.scenes.cycle.layout import (AX_CA, AX_CPHI, AX_DAL, AX_FRAME, AX_SA, AX_SPHI, IW_CODE, IW_EDGE,
@@ -247,6 +247,28 @@ def rail_code(k, y, p, iw, cphi, sphi, d_gap, d_force):
     """Code of rail slot k (§5.3): corner k - 4 below y = 0 at x <= 0."""
     rx, ry, gx, gy, gvx, gvy = corner_motion(k % 4, y, 0.5 * p[Lp.LL], 0.5 * p[Lp.AA], cphi, sphi)
     return next_code(iw[IW_CODE + k], -gy, -gvy, gx <= 0.0, p[Lp.KC], p[Lp.CD], p[Lp.LAW], d_gap, d_force)
+
+
+@kernel(inline=True)
+def slot_margin(k, y, p, iw, ca, sa, dal, cphi, sphi):
+    """contacts.code_margin of corner k on the fence (slot 0-3) at y, from its code in iw: >= 0
+    while its own test (next_code) keeps it, the span and the manifold aside."""
+    _, _, D, Dd, _, _, _ = corner_geometry(k, y, p, iw, ca, sa, dal, cphi, sphi)
+    return code_margin(iw[IW_CODE + k], D, Dd, p[Lp.KC], p[Lp.CD], p[Lp.LAW], NU.CONTACT_HYSTERESIS * p[Lp.FL],
+                       NU.CONTACT_HYSTERESIS * p[Lp.FFORCE])
+
+
+@kernel(inline=True)
+def margin_slot(iw, codes, mask):
+    """The first corner on the fence (slot 0-3) in mask whose code in codes differs from iw's: the
+    one whose slot_margin brackets the change (events.known_range); -1 if none. Not the rail's
+    corners: on the main job's sample a rail corner's code changed, changed back and changed
+    again inside one step, and its margin bracketed the last change where the bisection over
+    the step finds the first."""
+    for k in range(RAIL0):
+        if mask & (1 << k) and codes[k] != iw[IW_CODE + k]:
+            return k
+    return -1
 
 
 @kernel(inline=True)
