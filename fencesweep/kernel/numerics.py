@@ -53,8 +53,9 @@ H_MAX_PER_PERIOD = 1.0 / 12.0
 #: time results and the ~1e-6 s error of the dense output itself.
 EVENT_TOL = 1e-12
 #: At most this many evaluations of a slot's margin bracket a contact change before its
-#: bisection (events.known_range): the Illinois method closes the bracket to EVENT_TOL in ~6-10
-#: on a smooth margin; one that has not by then leaves the rest to the bisection.
+#: bisection (events.known_range): the Illinois method closes a smooth quantity's bracket to
+#: 1e-12 in at most 15 (tests/test_search.py, a cubic); a bracket not closed by then leaves
+#: the rest to the bisection.
 MARGIN_EVALS = 16
 
 #: A contact released inside a step (a PUSH slot that stops pushing) is located on the method's
