@@ -21,12 +21,19 @@ from fencesweep.model.scenes.cycle.slots import (FENCE_BITS, changed_at, changed
 from fencesweep.model.scenes.load import outcome_margin
 
 
+@kernel(inline=True)
+def point_at(t0, h, y0, Q, p, iw, tmp, theta):
+    """The state at t0 + theta h on the step's dense output Q into tmp[:N_CTRL] (rk.dense_eval),
+    and its frame there (slots.frame_at): what the searches' predicates and quantities read."""
+    rk.dense_eval(y0, Q, theta, tmp, N_CTRL)
+    return frame_at(t0 + theta * h, tmp, p, iw)
+
+
 @kernel()
 def mask_changed(ctx, theta):
     """Predicate for search.bisect: has any slot in ctx's mask changed at theta?"""
     t0, h, y0, Q, p, iw, tmp, mask = ctx
-    rk.dense_eval(y0, Q, theta, tmp, N_CTRL)
-    ca, sa, dal, cphi, sphi = frame_at(t0 + theta * h, tmp, p, iw)
+    ca, sa, dal, cphi, sphi = point_at(t0, h, y0, Q, p, iw, tmp, theta)
     return changed_at(mask, tmp, p, iw, ca, sa, dal, cphi, sphi)
 
 
@@ -34,8 +41,7 @@ def mask_changed(ctx, theta):
 def neg_gap(ctx, theta):
     """-gap of one slot at theta (search.peak_max of it is the gap's minimum)."""
     t0, h, y0, Q, p, iw, tmp, k = ctx
-    rk.dense_eval(y0, Q, theta, tmp, N_CTRL)
-    ca, sa, dal, cphi, sphi = frame_at(t0 + theta * h, tmp, p, iw)
+    ca, sa, dal, cphi, sphi = point_at(t0, h, y0, Q, p, iw, tmp, theta)
     g, r = slot_gap(k, tmp, p, iw, ca, sa, dal, cphi, sphi)
     return -g
 
@@ -57,8 +63,7 @@ def gap_crossed(ctx, theta):
     """Predicate for search.bisect: has the gap of one slot changed sign from its sign at the
     step's start (g0 > 0 or not) by theta?"""
     t0, h, y0, Q, p, iw, tmp, k, closed0 = ctx
-    rk.dense_eval(y0, Q, theta, tmp, N_CTRL)
-    ca, sa, dal, cphi, sphi = frame_at(t0 + theta * h, tmp, p, iw)
+    ca, sa, dal, cphi, sphi = point_at(t0, h, y0, Q, p, iw, tmp, theta)
     g, r = slot_gap(k, tmp, p, iw, ca, sa, dal, cphi, sphi)
     return (g <= 0.0) != closed0
 
@@ -75,8 +80,7 @@ def outcome_reached(ctx, theta):
 def margin_at(ctx, theta):
     """slots.slot_margin of one corner slot at theta (for search.root)."""
     t0, h, y0, Q, p, iw, tmp, k = ctx
-    rk.dense_eval(y0, Q, theta, tmp, N_CTRL)
-    ca, sa, dal, cphi, sphi = frame_at(t0 + theta * h, tmp, p, iw)
+    ca, sa, dal, cphi, sphi = point_at(t0, h, y0, Q, p, iw, tmp, theta)
     return slot_margin(k, tmp, p, iw, ca, sa, dal, cphi, sphi)
 
 
