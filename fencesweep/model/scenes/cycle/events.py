@@ -8,12 +8,14 @@ The searches are kernel/search.py's, given a predicate or quantity of (ctx, thet
 """
 from __future__ import annotations
 
+import math
+
 from fencesweep.kernel import numerics as NU
 from fencesweep.kernel import rk
 from fencesweep.kernel.jit import kernel
 from fencesweep.kernel.search import bisector, hermite_max, peak_finder, root_finder
 from fencesweep.model import layout as Lp
-from fencesweep.model.scenes.contacts import APART, N_SLOTS
+from fencesweep.model.scenes.contacts import APART, N_SLOTS, RAIL0, TIP
 from fencesweep.model.scenes.cycle.layout import IW_CODE, N_CTRL, N_STATE
 from fencesweep.model.scenes.cycle.rhs import step
 from fencesweep.model.scenes.cycle.slots import (FENCE_BITS, changed_at, changed_mask, classify, frame_at, margin_slot,
@@ -22,18 +24,28 @@ from fencesweep.model.scenes.load import outcome_margin
 
 
 @kernel(inline=True)
-def point_at(t0, h, y0, Q, p, iw, tmp, theta):
+def point_at(t0, h, y0, Q, p, iw, tmp, theta, fence):
     """The state at t0 + theta h on the step's dense output Q into tmp[:N_CTRL] (rk.dense_eval),
-    and its frame there (slots.frame_at): what the searches' predicates and quantities read."""
+    and its frame there (slots.frame_at): what the searches' predicates and quantities read.
+    Without `fence` (only the rail's slots or PIVOT's constant gap are read) the fence's part
+    of the frame (the drive, cos and sin of alpha, alpha') is not formed, and is 0."""
     rk.dense_eval(y0, Q, theta, tmp, N_CTRL)
-    return frame_at(t0 + theta * h, tmp, p, iw)
+    if fence:
+        return frame_at(t0 + theta * h, tmp, p, iw)
+    return 0.0, 0.0, 0.0, math.cos(tmp[2]), math.sin(tmp[2])
+
+
+@kernel(inline=True)
+def reads_fence(k):
+    """Does slot k's gap (slots.slot_gap) read the fence's frame: a corner on the fence, the tip?"""
+    return k < RAIL0 or k == TIP
 
 
 @kernel()
 def mask_changed(ctx, theta):
     """Predicate for search.bisect: has any slot in ctx's mask changed at theta?"""
     t0, h, y0, Q, p, iw, tmp, mask = ctx
-    ca, sa, dal, cphi, sphi = point_at(t0, h, y0, Q, p, iw, tmp, theta)
+    ca, sa, dal, cphi, sphi = point_at(t0, h, y0, Q, p, iw, tmp, theta, (mask & FENCE_BITS) != 0)
     return changed_at(mask, tmp, p, iw, ca, sa, dal, cphi, sphi)
 
 
@@ -41,7 +53,7 @@ def mask_changed(ctx, theta):
 def neg_gap(ctx, theta):
     """-gap of one slot at theta (search.peak_max of it is the gap's minimum)."""
     t0, h, y0, Q, p, iw, tmp, k = ctx
-    ca, sa, dal, cphi, sphi = point_at(t0, h, y0, Q, p, iw, tmp, theta)
+    ca, sa, dal, cphi, sphi = point_at(t0, h, y0, Q, p, iw, tmp, theta, reads_fence(k))
     g, r = slot_gap(k, tmp, p, iw, ca, sa, dal, cphi, sphi)
     return -g
 
@@ -63,7 +75,7 @@ def gap_crossed(ctx, theta):
     """Predicate for search.bisect: has the gap of one slot changed sign from its sign at the
     step's start (g0 > 0 or not) by theta?"""
     t0, h, y0, Q, p, iw, tmp, k, closed0 = ctx
-    ca, sa, dal, cphi, sphi = point_at(t0, h, y0, Q, p, iw, tmp, theta)
+    ca, sa, dal, cphi, sphi = point_at(t0, h, y0, Q, p, iw, tmp, theta, reads_fence(k))
     g, r = slot_gap(k, tmp, p, iw, ca, sa, dal, cphi, sphi)
     return (g <= 0.0) != closed0
 
@@ -80,7 +92,7 @@ def outcome_reached(ctx, theta):
 def margin_at(ctx, theta):
     """slots.slot_margin of one corner slot at theta (for search.root)."""
     t0, h, y0, Q, p, iw, tmp, k = ctx
-    ca, sa, dal, cphi, sphi = point_at(t0, h, y0, Q, p, iw, tmp, theta)
+    ca, sa, dal, cphi, sphi = point_at(t0, h, y0, Q, p, iw, tmp, theta, reads_fence(k))
     return slot_margin(k, tmp, p, iw, ca, sa, dal, cphi, sphi)
 
 
