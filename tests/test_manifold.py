@@ -18,7 +18,7 @@ from fencesweep import resolve
 from fencesweep.kernel.jit import python_callable
 from fencesweep.kernel.numerics import FACE_TOL
 from fencesweep.model.prepare import prepare
-from fencesweep.model.scenes.contacts import APART, N_SLOTS
+from fencesweep.model.scenes.contacts import APART, CLIPPED, FACE, N_SLOTS, PIVOT, PUSH, TIP
 from fencesweep.model.scenes.cycle import layout as CL
 from fencesweep.model.scenes.cycle import rhs as R
 from fencesweep.model.scenes.cycle import slots as S
@@ -54,6 +54,62 @@ def fence_force(D, x, theta, L=L, A=A):
     rhs(0.0, y, p, iw, dy, aux)
     pushing = int(np.sum(codes[[0, 1, 2, 3, 8, 9]] != APART))
     return aux[CL.AX_NF], pushing
+
+
+def _pair_near_the_tip(rng, p):
+    """Two states of the load near the fence's tip: iw classified at the first (codes, tag, sides, as
+    an event enters them), the second a short move and another velocity away."""
+    x, D, theta = rng.uniform(-0.02, 0.05), rng.uniform(-2e-3, 4e-3), rng.uniform(-0.3, 0.6)
+    c, s = math.cos(theta), math.sin(theta)
+    y0 = np.zeros(CL.N_STATE)
+    y0[:2] = np.array([FL - x, -D]) - np.array([c * (-L / 2) - s * (-A / 2), s * (-L / 2) + c * (-A / 2)])
+    y0[2] = theta
+    y0[3:6] = rng.normal(0.0, 0.5, 3)
+    iw = np.zeros(CL.N_IW, dtype=np.int64)
+    iw[:4] = 1
+    iw[CL.IW_MODE] = CL.FM_KINEMATIC
+    iw[CL.IW_LOAD] = 1
+    codes, tags = np.zeros(N_SLOTS, np.int64), np.zeros(N_SLOTS, np.int64)
+    gaps, rates = np.zeros(N_SLOTS), np.zeros(N_SLOTS)
+    for _ in range(2):
+        iw[CL.IW_EDGE] = classify(0.0, y0, p, iw, codes, gaps, rates, tags)
+        iw[CL.IW_CODE:CL.IW_CODE + N_SLOTS] = codes
+        iw[:4] = tags[:4]
+    y1 = y0 + np.concatenate([rng.normal(0.0, 1e-3, 2), rng.normal(0.0, 0.02, 1), rng.normal(0.0, 0.3, 3),
+                              np.zeros(CL.N_STATE - 6)])
+    tag1 = classify(0.0, y1, p, iw, codes, gaps, rates, tags)
+    return y1, iw, codes, tags, tag1
+
+
+@plain_python
+def test_the_margins_change_sign_where_the_manifold_changes_a_code():
+    """slots.corner_margins and tip_margins, the quantities whose sign change events.known_range
+    brackets an event with (docs/model.md §15, Events), are all >= 0 exactly where the manifold
+    keeps a corner's code and side (docs/model.md (4.9), (5.2)) or the tip's code (5.7)-(5.9): over
+    pairs of states near the tip, the second classified against the first's codes, while the
+    manifold's axis stays the face (a corner) or the tip's point stays (the tip)."""
+    p = prepare(resolve("cycle", L=L, A=A, l=FL, k1=K1, drive="rigid", contact_law="hertz", m1=15.0, R_s=0.0,
+                        dP=0.3))
+    frame_at = python_callable(S.frame_at)
+    corner_margins, tip_margins = python_callable(S.corner_margins), python_callable(S.tip_margins)
+    rng = np.random.default_rng(11)
+    seen = set()
+    for _ in range(3000):
+        y, iw, codes, tags, tag = _pair_near_the_tip(rng, p)
+        frame = frame_at(0.0, y, p, iw)
+        if tag >= FACE and iw[CL.IW_EDGE] >= FACE:
+            for j in range(4):
+                keeps = codes[j] == iw[CL.IW_CODE + j] and tags[j] == iw[j]
+                assert (min(corner_margins(j, y, p, iw, *frame)) >= 0.0) == keeps, (j, y, iw)
+                seen.add(("corner", int(iw[CL.IW_CODE + j]), keeps))
+        if iw[CL.IW_CODE + TIP] != APART and tag == iw[CL.IW_EDGE] and codes[PIVOT] == iw[CL.IW_CODE + PIVOT]:
+            keeps = codes[TIP] == iw[CL.IW_CODE + TIP]
+            assert (min(tip_margins(y, p, iw, *frame)) >= 0.0) == keeps, (y, iw)
+            seen.add(("tip on the face" if tag >= FACE else "tip on an edge", int(iw[CL.IW_CODE + TIP]), keeps))
+    # each kind of slot, each code, kept and left
+    assert {(kind, code, keeps) for kind in ("corner", "tip on the face", "tip on an edge")
+            for code in (APART, PUSH, CLIPPED) for keeps in (True, False)
+            if not (kind != "corner" and code == APART)} <= seen, seen
 
 
 @plain_python

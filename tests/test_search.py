@@ -153,3 +153,13 @@ def test_root_stops_after_its_evaluations_with_a_bracket():
     a, b = _bracket(ctx, 1e-12, 2)
     assert ctx[1] - 2 == 2
     assert 0.0 <= a < b <= 1.0 and 0.5 - a - 4.0 * a ** 3 >= 0.0 > 0.5 - b - 4.0 * b ** 3
+
+
+def test_root_at_the_bracket_s_start_closes_in_one_evaluation():
+    """A quantity that is 0 at a and negative after it (a contact at zero depth that starts to
+    penetrate at the step's start) has its root at a: one evaluation, tol / 2 past it, closes the
+    bracket, where bisecting towards a would take all of max_evals."""
+    ctx = np.array([0.0, 0.0])
+    a, b = _bracket(ctx, 1e-12, 40)
+    assert a == 0.0 and 0.0 < b <= 1e-12
+    assert ctx[1] - 2 == 1

@@ -61,8 +61,8 @@ def root(ctx, a, b, qa, qb, tol, max_evals):
     for _ in range(max_evals):
         if b - a <= tol:
             break
-        c = (a * qb - b * qa) / (qb - qa)
-        if not (c > a and c < b):
+        c = a - qa * (b - a) / (qb - qa)  # = a where qa = 0: a root at a closes in one evaluation
+        if not (c >= a and c <= b):
             c = 0.5 * (a + b)
         c = min(max(c, a + 0.5 * tol), b - 0.5 * tol)  # an estimate at an end steps over the root
         qc = QUANTITY(ctx, c)

@@ -50,16 +50,17 @@ def next_code(cur, D, Dd, in_span, kc, cd, law, d_gap, d_force):
 
 
 @kernel(inline=True)
-def code_margin(cur, D, Dd, kc, cd, law, d_gap, d_force):
-    """How far a slot in its span is from leaving its code `cur` at penetration D and rate Dd:
-    >= 0 while next_code keeps it, < 0 once it changes (docs/model.md (4.9)): -D apart; D + d_gap
-    and the Kelvin force's distance from -d_force (PUSH) or d_force (CLIPPED), the nearer of
-    the two, touching. It changes sign where the code changes: events.py brackets an event
-    with it before the bisection (search.root)."""
+def code_margins(cur, D, Dd, kc, cd, law, d_gap, d_force):
+    """How far a slot in its span is from leaving its code `cur` at penetration D and rate Dd, in
+    two parts, both >= 0 while next_code keeps it and one < 0 once it changes (docs/model.md
+    (4.9)): apart, (-D, inf); touching, (D + d_gap, the Kelvin force's distance from -d_force
+    (PUSH) or d_force (CLIPPED)). The parts, not their minimum, as their units differ and the
+    minimum is kinked where they cross: events.py brackets an event with the part that changes
+    sign (search.root)."""
     if cur == APART:
-        return -D
+        return -D, math.inf
     n = kelvin_force(max(D, 0.0), Dd, kc, cd, law)[0]
-    return min(D + d_gap, n + d_force if cur == PUSH else d_force - n)
+    return D + d_gap, (n + d_force if cur == PUSH else d_force - n)
 
 
 @kernel(inline=True)

@@ -19,7 +19,7 @@ from fencesweep.model.scenes.contacts import APART, N_SLOTS, RAIL0, TIP
 from fencesweep.model.scenes.cycle.layout import IW_CODE, N_CTRL, N_STATE
 from fencesweep.model.scenes.cycle.rhs import step
 from fencesweep.model.scenes.cycle.slots import (FENCE_BITS, changed_at, changed_mask, classify, frame_at, margin_slot,
-                                                 releases, slot_changed, slot_gap, slot_margin)
+                                                 releases, slot_changed, slot_gap, slot_margins)
 from fencesweep.model.scenes.load import outcome_margin
 
 
@@ -88,12 +88,18 @@ def outcome_reached(ctx, theta):
     return outcome_hit(kind, tmp, p)
 
 
+@kernel(inline=True)
+def margins_at(t0, h, y0, Q, p, iw, tmp, k, theta):
+    """slots.slot_margins of slot k at theta on the step's dense output Q."""
+    ca, sa, dal, cphi, sphi = point_at(t0, h, y0, Q, p, iw, tmp, theta, True)
+    return slot_margins(k, tmp, p, iw, ca, sa, dal, cphi, sphi)
+
+
 @kernel()
 def margin_at(ctx, theta):
-    """slots.slot_margin of one corner slot at theta (for search.root)."""
-    t0, h, y0, Q, p, iw, tmp, k = ctx
-    ca, sa, dal, cphi, sphi = point_at(t0, h, y0, Q, p, iw, tmp, theta, reads_fence(k))
-    return slot_margin(k, tmp, p, iw, ca, sa, dal, cphi, sphi)
+    """Part j of slot k's margins at theta (for search.root)."""
+    t0, h, y0, Q, p, iw, tmp, k, j = ctx
+    return margins_at(t0, h, y0, Q, p, iw, tmp, k, theta)[j]
 
 
 #: the searches on the dense output (kernel/search.py), bound to the predicates and the gap above
@@ -108,21 +114,25 @@ find_margin = root_finder(margin_at, "cycle_find_margin")
 def known_range(t, h, y0, Q, p, iw, tmp, lo, hi, mask, k, tol):
     """Where the change of a slot in mask inside [lo, hi] (fractions of the step [t, t + h] with
     dense output Q) is taken to lie before its bisection (search.bisect's (a, b)): the sign
-    change of fence corner k's margin (slots.slot_margin; k from slots.margin_slot, -1: none)
-    bracketed by search.root to tol, its ends then tested by the bisection's own predicate. A
-    change the margin does not make (the span, the manifold, another slot) fails that test, and
-    the bracket is cut at the end that failed. The bisection then ends where it would have
-    without it, bit for bit, when the predicate changes once in [lo, hi]; where it changes
-    more than once, or flickers with rounding at the threshold, it may end at another change.
-    Returns (lo, hi) when nothing is known."""
+    change of a part of slot k's margins (slots.slot_margins; k from slots.margin_slot, -1:
+    none), the first part >= 0 at lo and < 0 at hi, bracketed by search.root to tol, its ends
+    then tested by the bisection's own predicate. A change the part does not make (the
+    manifold's choice, another slot) fails that test, and the bracket is cut at the end that
+    failed. The bisection then ends where it would have without it, bit for bit, when the
+    predicate changes once in [lo, hi]; where it changes more than once, or flickers with
+    rounding at the threshold, it may end at another change. Returns (lo, hi) when nothing is
+    known."""
     if k < 0:
         return lo, hi
-    ctx = (t, h, y0, Q, p, iw, tmp, k)
-    q_lo = margin_at(ctx, lo)
-    q_hi = margin_at(ctx, hi)
-    if not (q_lo >= 0.0 and q_hi < 0.0):
+    q_lo = margins_at(t, h, y0, Q, p, iw, tmp, k, lo)
+    q_hi = margins_at(t, h, y0, Q, p, iw, tmp, k, hi)
+    j = -1
+    for i in range(4):
+        if j < 0 and q_lo[i] >= 0.0 and q_hi[i] < 0.0:
+            j = i
+    if j < 0:
         return lo, hi
-    a, b = find_margin(ctx, lo, hi, q_lo, q_hi, tol, NU.MARGIN_EVALS)
+    a, b = find_margin((t, h, y0, Q, p, iw, tmp, k, j), lo, hi, q_lo[j], q_hi[j], tol, NU.MARGIN_EVALS)
     test = (t, h, y0, Q, p, iw, tmp, mask)
     if a > lo and mask_changed(test, a):
         return lo, a
@@ -282,7 +292,7 @@ def find_event(p, w, t, h, exited):
     kind = 0
     if mask != 0:
         ensure_dense(p, w, h)
-        theta = locate_change(t, h, w.y, w.Q, p, w.iw, w.tmp, 0.0, hi, mask, margin_slot(w.iw, w.codes1, mask), tol)[1]
+        theta = locate_change(t, h, w.y, w.Q, p, w.iw, w.tmp, 0.0, hi, mask, margin_slot(w.iw, w.codes1, w.tags1, mask), tol)[1]
         kind = 1
     if not exited:
         for oc in range(2):
@@ -313,7 +323,7 @@ def located(p, w, t, h, lo, hi, Q2, mask):
     """The first change of a slot in mask in [lo, hi] (fractions of h) on the dense output Q2
     of the step [t, t + hi h], just past it (search.bisect)."""
     sh = hi * h
-    return hi * locate_change(t, sh, w.y, Q2, p, w.iw, w.tmp, lo / hi, 1.0, mask, margin_slot(w.iw, w.codes1, mask),
+    return hi * locate_change(t, sh, w.y, Q2, p, w.iw, w.tmp, lo / hi, 1.0, mask, margin_slot(w.iw, w.codes1, w.tags1, mask),
                               NU.EVENT_TOL * max(1.0, t) / sh)[1]
 
 

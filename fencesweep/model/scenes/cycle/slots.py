@@ -15,7 +15,7 @@ from fencesweep.model import layout as Lp
 from fencesweep.model import results as Rs
 from fencesweep.model.drive import drive_angle
 from fencesweep.model.scenes.contacts import (APART, CLIPPED, FACE, N_SLOTS, PIVOT, PUSH, RAIL0, TIP,
-                                              code_margin, corner_fence_geometry, edge_margin, edge_point_rate, fence_coords, fence_in_load, next_code,
+                                              code_margins, corner_fence_geometry, edge_margin, edge_point_rate, fence_coords, fence_in_load, next_code,
                                               pivot_local, tip_edge_normal, tip_gap, tip_local, tip_position,
                                               beyond_depth, side_edge, under_tip_edge)
 from fencesweep.model.scenes.cycle.layout import (AX_CA, AX_CPHI, AX_DAL, AX_FRAME, AX_SA, AX_SPHI, IW_CODE, IW_EDGE,
@@ -88,15 +88,20 @@ def fence_in_use(iw):
 
 
 @kernel(inline=True)
+def edge_end_depth(e, u, tx, ty, y, p, dal, cphi, sphi):
+    """Depth D and rate D' of the fence point P(u) = u T below load edge e (docs/model.md (5.8),
+    (5.9))."""
+    px, py = u * tx, u * ty
+    plx, ply, pdx, pdy = tip_local(px, py, y[0], y[1], cphi, sphi)
+    D, nex, ney = tip_edge_normal(e, plx, ply, 0.5 * p[Lp.LL], 0.5 * p[Lp.AA], cphi, sphi)
+    return D, edge_point_rate(px, py, pdx, pdy, nex, ney, y[3], y[4], y[5], dal)
+
+
+@kernel(inline=True)
 def edge_end_code(e, u, tx, ty, y, p, iw, slot, cur, dal, cphi, sphi, d_gap, d_force):
     """Code of the fence point P(u) = u T pushing load edge e (docs/model.md (5.8), (5.9)); its
     code in iw counts only while it is the point in use (cur)."""
-    hl = 0.5 * p[Lp.LL]
-    hw = 0.5 * p[Lp.AA]
-    px, py = u * tx, u * ty
-    plx, ply, pdx, pdy = tip_local(px, py, y[0], y[1], cphi, sphi)
-    D, nex, ney = tip_edge_normal(e, plx, ply, hl, hw, cphi, sphi)
-    Dd = edge_point_rate(px, py, pdx, pdy, nex, ney, y[3], y[4], y[5], dal)
+    D, Dd = edge_end_depth(e, u, tx, ty, y, p, dal, cphi, sphi)
     return next_code(iw[IW_CODE + slot] if cur else APART, D, Dd, True, p[Lp.KC], p[Lp.CD], p[Lp.LAW], d_gap, d_force)
 
 
@@ -250,24 +255,66 @@ def rail_code(k, y, p, iw, cphi, sphi, d_gap, d_force):
 
 
 @kernel(inline=True)
-def slot_margin(k, y, p, iw, ca, sa, dal, cphi, sphi):
-    """contacts.code_margin of corner k on the fence (slot 0-3) at y, from its code in iw: >= 0
-    while its own test (next_code) keeps it, the span and the manifold aside."""
-    _, _, D, Dd, _, _, _ = corner_geometry(k, y, p, iw, ca, sa, dal, cphi, sphi)
-    return code_margin(iw[IW_CODE + k], D, Dd, p[Lp.KC], p[Lp.CD], p[Lp.LAW], NU.CONTACT_HYSTERESIS * p[Lp.FL],
-                       NU.CONTACT_HYSTERESIS * p[Lp.FFORCE])
+def corner_margins(k, y, p, iw, ca, sa, dal, cphi, sphi):
+    """How far corner k on the fence (slot 0-3) is at y from leaving its code and side in iw, in
+    four parts, all >= 0 while corner_code keeps both (the manifold's choice of its axis aside)
+    and one < 0 once one changes (docs/model.md (4.9), (5.2)). Touching: its span, s and l - s,
+    then contacts.code_margins. Apart: its entry, max(-D, -s, s - l) (D > 0 inside the span); its
+    side, turned beyond the tip by D > 0, max(l - s, -D), and behind the pivot from -1 to +1, s."""
+    s, _, D, Dd, _, _, _ = corner_geometry(k, y, p, iw, ca, sa, dal, cphi, sphi)
+    fl = p[Lp.FL]
+    cur = iw[IW_CODE + k]
+    if cur == APART:
+        return max(-D, max(-s, s - fl)), max(fl - s, -D), s if iw[k] < 0 else math.inf, math.inf
+    dg, df = code_margins(cur, D, Dd, p[Lp.KC], p[Lp.CD], p[Lp.LAW], NU.CONTACT_HYSTERESIS * fl,
+                          NU.CONTACT_HYSTERESIS * p[Lp.FFORCE])
+    return s, fl - s, dg, df
 
 
 @kernel(inline=True)
-def margin_slot(iw, codes, mask):
-    """The first corner on the fence (slot 0-3) in mask whose code in codes differs from iw's: the
-    one whose slot_margin brackets the change (events.known_range); -1 if none. Not the rail's
-    corners: on the main job's sample a rail corner's code changed, changed back and changed
-    again inside one step, and its margin bracketed the last change where the bisection over
-    the step finds the first."""
+def tip_margins(y, p, iw, ca, sa, dal, cphi, sphi):
+    """How far the TIP slot, touching, is at y from leaving its code in iw (docs/model.md (4.9),
+    (5.7)-(5.9)), in corner_margins' four parts: contacts.code_margins of its point under iw's tag
+    (an edge e: the tip end on e; FACE + i + 4 b: U on the edge from corner i, by its branch b),
+    the length of the fence's part inside the load (< 0: the fence misses it), inf. The manifold's
+    choice of the point (a change of tag) is not in it."""
+    fl = p[Lp.FL]
+    hl = 0.5 * p[Lp.LL]
+    hw = 0.5 * p[Lp.AA]
+    tag = iw[IW_EDGE]
+    tx, ty = tip_position(fl, ca, sa)
+    tlx, tly, _, _ = tip_local(tx, ty, y[0], y[1], cphi, sphi)
+    olx, oly = pivot_local(y[0], y[1], cphi, sphi)
+    lo, hi, _, _ = fence_in_load(olx, oly, tlx, tly, hl, hw, NU.CONTACT_HYSTERESIS * fl)
+    if tag >= FACE + 4:
+        _, D, Dd = beyond_depth((tag - FACE) % 4, y, hl, hw, ca, sa, dal, cphi, sphi, iw)
+    else:
+        D, Dd = edge_end_depth(tag if tag < FACE else side_edge(tag - FACE), hi, tx, ty, y, p, dal, cphi, sphi)
+    dg, df = code_margins(iw[IW_CODE + TIP], D, Dd, p[Lp.KC], p[Lp.CD], p[Lp.LAW], NU.CONTACT_HYSTERESIS * fl,
+                          NU.CONTACT_HYSTERESIS * p[Lp.FFORCE])
+    return dg, df, hi - lo, math.inf
+
+
+@kernel(inline=True)
+def slot_margins(k, y, p, iw, ca, sa, dal, cphi, sphi):
+    """corner_margins of slot k = 0-3, tip_margins of TIP (margin_slot's slots)."""
+    if k == TIP:
+        return tip_margins(y, p, iw, ca, sa, dal, cphi, sphi)
+    return corner_margins(k, y, p, iw, ca, sa, dal, cphi, sphi)
+
+
+@kernel(inline=True)
+def margin_slot(iw, codes, tags, mask):
+    """The slot in mask whose slot_margins bracket its change (events.known_range): the first
+    corner on the fence (slot 0-3) whose code or side in codes, tags differs from iw's, else TIP
+    touching with another code; -1 if none. Not the rail's corners: on the main job's sample a
+    rail corner's code changed, changed back and changed again inside one step, and its margin
+    bracketed the last change where the bisection over the step finds the first."""
     for k in range(RAIL0):
-        if mask & (1 << k) and codes[k] != iw[IW_CODE + k]:
+        if mask & (1 << k) and slot_changed(k, codes[k], tags[k], iw):
             return k
+    if mask & (1 << TIP) and iw[IW_CODE + TIP] != APART and codes[TIP] != iw[IW_CODE + TIP]:
+        return TIP
     return -1
 
 
