@@ -124,6 +124,43 @@ def test_bisect_that_knows_a_bracket_ends_bit_for_bit_where_it_would_with_fewer_
 
 
 @kernel()
+def _excursion(ctx, x):
+    """True on [ctx[0], ctx[1]) and from ctx[2] on: a change, a change back, and a change again."""
+    ctx[3] += 1.0
+    return (x >= ctx[0] and x < ctx[1]) or x >= ctx[2]
+
+
+_find_excursion = S.bisector(_excursion, "test_bisect_excursion")
+_check_excursion = S.checker(_excursion, "test_check_excursion")
+
+
+@entry()
+def _locate_checked(ctx, tol, a, b, n):
+    a, b = _check_excursion(ctx, 0.0, 1.0, a, b, n)
+    return _find_excursion(ctx, 0.0, 1.0, tol, a, b)
+
+
+@pytest.mark.parametrize("first, back, n, same_as", [
+    (1e-6, 0.4, 3, "plain"),  # the excursion holds the second midpoint, 0.25: tested
+    (0.40, 0.44, 3, "trusting"),  # it holds only the fourth, 0.4375: not tested with 3
+    (0.40, 0.44, 4, "plain"),
+])
+def test_a_checked_bracket_finds_the_change_the_bisection_finds_where_the_predicate_changes_back(
+        first, back, n, same_as):
+    """A bracket (a, b) of the last of three changes, at 0.45 (as a slot's margin brackets its own
+    change, not another slot's change and change back before it): the bisection that trusts it
+    ends there, the one that evaluates every midpoint at the excursion [first, back). With its
+    first n midpoints outside (a, b) tested (search.checked), the bisection ends where the one
+    without (a, b) does wherever the excursion holds one of them, and on (a, b) where not."""
+    last = 0.45
+    plain = _locate_checked(np.array([first, back, last, 0.0]), 1e-12, 0.0, 1.0, 0)
+    trusting = _locate_checked(np.array([first, back, last, 0.0]), 1e-12, last - 1e-12, last + 1e-12, 0)
+    checked = _locate_checked(np.array([first, back, last, 0.0]), 1e-12, last - 1e-12, last + 1e-12, n)
+    assert plain[0] <= first <= plain[1] and trusting[0] <= last <= trusting[1]
+    assert checked == (plain if same_as == "plain" else trusting)
+
+
+@kernel()
 def _cubic(ctx, x):
     ctx[1] += 1.0
     return ctx[0] - x - 4.0 * x ** 3

@@ -57,6 +57,12 @@ EVENT_TOL = 1e-12
 #: 1e-12 in at most 15 (tests/test_search.py, a cubic); a bracket not closed by then leaves
 #: the rest to the bisection.
 MARGIN_EVALS = 16
+#: ... and the bisection's first MARGIN_CHECKS midpoints outside that bracket, which it would take
+#: as known, are tested (search.checked): a slot that changes and changes back inside the
+#: step (a corner that enters while the manifold's axis turns to the face, and leaves when it turns
+#: back) is then found as the bisection without the bracket finds it, wherever the excursion spans
+#: one of them. MEASURED: results/kernel_cuts.md.
+MARGIN_CHECKS = 3
 
 #: A contact released inside a step (a PUSH slot that stops pushing) is located on the method's
 #: own flow, not on the step's dense output alone: the step's later stages lie past the kink

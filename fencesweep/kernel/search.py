@@ -4,7 +4,7 @@ peak finder (Brent's search of a quantity's maximum). The predicate or quantity 
 function `f(ctx, theta)` of the fraction theta of the step and a tuple `ctx` the caller packs
 (the step's start, its dense output, the scene's parameters and work arrays): events and peaks
 are passed in as data, as scipy.integrate._ivp passes its event functions. `bisector(pred,
-name)`, `root_finder(q, name)` and `peak_finder(q, name)` compile the templates with the scene's function bound
+name)`, `checker(pred, name)`, `root_finder(q, name)` and `peak_finder(q, name)` compile the templates with the scene's function bound
 (kernel/jit.py specialise).
 """
 from __future__ import annotations
@@ -21,6 +21,11 @@ PRED = QUANTITY = None
 def bisector(pred, name: str):
     """`bisect` with the predicate `pred`, compiled as the kernel function `name`."""
     return specialise(bisect, name, PRED=pred)
+
+
+def checker(pred, name: str):
+    """`checked` with the predicate `pred`, compiled as the kernel function `name`."""
+    return specialise(checked, name, PRED=pred)
 
 
 def peak_finder(q, name: str):
@@ -48,6 +53,26 @@ def bisect(ctx, lo, hi, tol, a, b):
         else:
             lo = mid
     return lo, hi
+
+
+def checked(ctx, lo, hi, a, b, n):
+    """A bracket (a, b) that `bisect` on [lo, hi] is to take as known, checked at the first n
+    midpoints it would take as known (False at or before a, True at or after b): where PRED is
+    found otherwise at one, it changes more than once in [lo, hi], and the bracket returned is the
+    one the bisection without (a, b) had reached there, with that midpoint's true value, so that
+    `bisect` goes on from it as without (a, b). A template: PRED is the scene's (`checker`)."""
+    for _ in range(n):
+        mid = 0.5 * (lo + hi)
+        if mid > a and mid < b:
+            break
+        hit = PRED(ctx, mid)
+        if hit != (mid >= b):
+            return (lo, mid) if hit else (mid, hi)
+        if hit:
+            hi = mid
+        else:
+            lo = mid
+    return a, b
 
 
 def root(ctx, a, b, qa, qb, tol, max_evals):

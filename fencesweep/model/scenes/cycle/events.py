@@ -13,7 +13,7 @@ import math
 from fencesweep.kernel import numerics as NU
 from fencesweep.kernel import rk
 from fencesweep.kernel.jit import kernel
-from fencesweep.kernel.search import bisector, hermite_max, peak_finder, root_finder
+from fencesweep.kernel.search import bisector, checker, hermite_max, peak_finder, root_finder
 from fencesweep.model import layout as Lp
 from fencesweep.model.scenes.contacts import APART, N_SLOTS, RAIL0, TIP
 from fencesweep.model.scenes.cycle.layout import IW_CODE, N_CTRL, N_STATE
@@ -106,6 +106,7 @@ def margin_at(ctx, theta):
 find_change = bisector(mask_changed, "cycle_find_change")
 find_outcome = bisector(outcome_reached, "cycle_find_outcome")
 find_crossing = bisector(gap_crossed, "cycle_find_crossing")
+check_change = checker(mask_changed, "cycle_check_change")
 min_gap = peak_finder(neg_gap, "cycle_min_gap")
 find_margin = root_finder(margin_at, "cycle_find_margin")
 
@@ -118,10 +119,11 @@ def known_range(t, h, y0, Q, p, iw, tmp, lo, hi, mask, k, tol):
     none), the first part >= 0 at lo and < 0 at hi, bracketed by search.root to tol, its ends
     then tested by the bisection's own predicate. A change the part does not make (the
     manifold's choice, another slot) fails that test, and the bracket is cut at the end that
-    failed. The bisection then ends where it would have without it, bit for bit, when the
-    predicate changes once in [lo, hi]; where it changes more than once, or flickers with
-    rounding at the threshold, it may end at another change. Returns (lo, hi) when nothing is
-    known."""
+    failed; then the bisection's first numerics.MARGIN_CHECKS midpoints outside it are tested
+    (search.checked). The bisection then ends where it would have without it, bit for bit, when
+    the predicate changes once in [lo, hi], or changes back over one of the midpoints tested;
+    where it changes and changes back between them, or flickers with rounding at the
+    threshold, it may end at another change. Returns (lo, hi) when nothing is known."""
     if k < 0:
         return lo, hi
     q_lo = margins_at(t, h, y0, Q, p, iw, tmp, k, lo)
@@ -138,7 +140,7 @@ def known_range(t, h, y0, Q, p, iw, tmp, lo, hi, mask, k, tol):
         return lo, a
     if b < hi and not mask_changed(test, b):
         return b, hi
-    return a, b
+    return check_change(test, lo, hi, a, b, NU.MARGIN_CHECKS)
 
 
 @kernel(inline=True)
