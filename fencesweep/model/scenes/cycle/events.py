@@ -81,6 +81,16 @@ def gap_crossed(ctx, theta):
 
 
 @kernel()
+def gap_part(ctx, theta):
+    """gap_crossed's gap as a quantity for search.root: the slot's gap, its sign turned so that it
+    is >= 0 while gap_crossed is False (-g from a closed start)."""
+    t0, h, y0, Q, p, iw, tmp, k, closed0 = ctx
+    ca, sa, dal, cphi, sphi = point_at(t0, h, y0, Q, p, iw, tmp, theta, reads_fence(k))
+    g = slot_gap(k, tmp, p, iw, ca, sa, dal, cphi, sphi)[0]
+    return -g if closed0 else g
+
+
+@kernel()
 def outcome_reached(ctx, theta):
     """Predicate for search.bisect: has outcome `kind` happened at theta?"""
     y0, Q, p, tmp, kind = ctx
@@ -107,6 +117,8 @@ find_change = bisector(mask_changed, "cycle_find_change")
 find_outcome = bisector(outcome_reached, "cycle_find_outcome")
 find_crossing = bisector(gap_crossed, "cycle_find_crossing")
 check_change = checker(mask_changed, "cycle_check_change")
+find_gap = root_finder(gap_part, "cycle_find_gap")
+check_crossing = checker(gap_crossed, "cycle_check_crossing")
 min_gap = peak_finder(neg_gap, "cycle_min_gap")
 find_margin = root_finder(margin_at, "cycle_find_margin")
 
@@ -192,13 +204,33 @@ def crossing_candidate(k, iw, codes1, g0, g1):
     return iw[IW_CODE + k] == APART and codes1[k] == APART and (g0[k] > 0.0) != (g1[k] > 0.0)
 
 
+@kernel(inline=True)
+def known_crossing(ctx, tol):
+    """The bracket of a slot's gap sign change (gap_crossed's ctx) that search.bisect takes as
+    known, as known_range's: the gap (gap_part) bracketed by search.root to tol, the ends tested
+    by gap_crossed, then the bisection's first numerics.MARGIN_CHECKS midpoints outside it
+    (search.checked); (0, 1) when the gap's ends do not bracket a sign change."""
+    q0 = gap_part(ctx, 0.0)
+    q1 = gap_part(ctx, 1.0)
+    if not (q0 >= 0.0 and q1 < 0.0):
+        return 0.0, 1.0
+    a, b = find_gap(ctx, 0.0, 1.0, q0, q1, tol, NU.MARGIN_EVALS)
+    if a > 0.0 and gap_crossed(ctx, a):
+        return 0.0, a
+    if b < 1.0 and not gap_crossed(ctx, b):
+        return b, 1.0
+    return check_crossing(ctx, 0.0, 1.0, a, b, NU.MARGIN_CHECKS)
+
+
 @kernel()
 def crossing_theta(p, w, t, h, k, tol):
     """theta inside the step at which slot k (crossing_candidate) touches, or 2: its gap's sign
-    change located on the dense output (search.bisect), and the slot's code read on the side of
-    it where the gap is closed."""
+    change located on the dense output (search.bisect, from what known_crossing knows), and the
+    slot's code read on the side of it where the gap is closed."""
     closed0 = not (w.g0[k] > 0.0)
-    lo, hi = find_crossing((t, h, w.y, w.Q, p, w.iw, w.tmp, k, closed0), 0.0, 1.0, tol, 0.0, 1.0)
+    ctx = (t, h, w.y, w.Q, p, w.iw, w.tmp, k, closed0)
+    a, b = known_crossing(ctx, tol)
+    lo, hi = find_crossing(ctx, 0.0, 1.0, tol, a, b)
     th = lo if closed0 else hi
     if mask_changed((t, h, w.y, w.Q, p, w.iw, w.tmp, 1 << k), th):
         return th
