@@ -299,13 +299,10 @@ def touched_between(p, w, t, h, hi, mask, grazing, tol):
 
 
 @kernel(inline=True)
-def find_event(p, w, t, h, exited):
-    """First event inside the step [t, t + h] on its dense output: (theta just past it, kind)
-    with kind 0 none (theta = 1), 1 a contact change or graze, 2 scraped, 3 escaped. The ends
-    of the step tell which events can lie inside it; only then is its dense output formed. A
-    change of one of the fence's slots is searched over all of them: one may change and change
-    back inside the step before the change seen at its end (a pivot end that pushes while a
-    corner leaves the rail)."""
+def step_ends(p, w, h):
+    """What the ends of the step tell: (the slots changed, as a mask; may a slot apart at both
+    ends touch in between, its gap of one sign at both (graze_candidate, dip_candidate), or of
+    the other at the end (crossing_candidate))."""
     mask = 0
     grazing = False
     crossing = False
@@ -313,9 +310,25 @@ def find_event(p, w, t, h, exited):
     for k in range(N_SLOTS):
         if slot_changed(k, w.codes1[k], w.tags1[k], w.iw):
             mask |= 1 << k
-        grazing |= (graze_candidate(k, w.iw, w.codes1, w.g0, w.r0, w.g1, w.r1)
-                    or (long and dip_candidate(k, w.iw, w.codes1, w.g0, w.r0, w.g1, w.r1, h)))
-        crossing |= crossing_candidate(k, w.iw, w.codes1, w.g0, w.g1)
+        if w.codes1[k] != APART or w.iw[IW_CODE + k] != APART:
+            continue  # the candidates below are apart at both ends
+        if crossing_candidate(k, w.iw, w.codes1, w.g0, w.g1):
+            crossing = True  # (a graze's or a dip's gap has one sign at both ends)
+        elif graze_candidate(k, w.iw, w.codes1, w.g0, w.r0, w.g1, w.r1) or (
+                long and dip_candidate(k, w.iw, w.codes1, w.g0, w.r0, w.g1, w.r1, h)):
+            grazing = True
+    return mask, grazing, crossing
+
+
+@kernel(inline=True)
+def find_event(p, w, t, h, exited):
+    """First event inside the step [t, t + h] on its dense output: (theta just past it, kind)
+    with kind 0 none (theta = 1), 1 a contact change or graze, 2 scraped, 3 escaped. The ends
+    of the step tell which events can lie inside it; only then is its dense output formed. A
+    change of one of the fence's slots is searched over all of them: one may change and change
+    back inside the step before the change seen at its end (a pivot end that pushes while a
+    corner leaves the rail)."""
+    mask, grazing, crossing = step_ends(p, w, h)
     hi = 1.0 if mask != 0 else 2.0
     tol = NU.EVENT_TOL * max(1.0, t) / h
     if grazing or crossing:
