@@ -281,5 +281,6 @@ def run_cycles(p, loads, period, out, traj, row_starts):
     the scene `cycle`), load k's parameters in loads[k] (layout.LOAD_SLOTS); write row k of out
     (STREAM_CYCLE_RESULTS) and the time series into traj (rows of TRAJ_COLUMNS, as many as
     fit), the first row of cycle k into row_starts[k] (row_starts[n]: the count). Returns the
-    number of rows produced. Its work arrays are allocated once, by run_on_heap."""
-    return run_on_heap(p, loads, period, out, traj, row_starts, p.copy())
+    number of rows produced. Its work arrays are allocated once, by run_on_heap (pk uninitialised:
+    clear_work copies p into it)."""
+    return run_on_heap(p, loads, period, out, traj, row_starts, np.empty_like(p))
