@@ -200,3 +200,14 @@ def test_root_at_the_bracket_s_start_closes_in_one_evaluation():
     a, b = _bracket(ctx, 1e-12, 40)
     assert a == 0.0 and 0.0 < b <= 1e-12
     assert ctx[1] - 2 == 1
+
+
+@pytest.mark.parametrize("a, b", [(0.5, 0.6), (0.1, 0.2)])
+def test_a_bracket_that_misses_the_change_is_cut_at_the_end_that_fails(a, b):
+    """search.checked tests the bracket's ends first: PRED already True at a (the change lies
+    before it) or still False at b (after it); the bisection then ends where it ends without a
+    bracket."""
+    ctx = np.array([0.0, 0.0, 0.3, 0.0])  # one change, at 0.3
+    plain = _locate_checked(ctx.copy(), 1e-12, 0.0, 1.0, 0)
+    assert plain[0] <= 0.3 <= plain[1]
+    assert _locate_checked(ctx.copy(), 1e-12, a, b, 0) == plain

@@ -56,11 +56,17 @@ def bisect(ctx, lo, hi, tol, a, b):
 
 
 def checked(ctx, lo, hi, a, b, n):
-    """A bracket (a, b) that `bisect` on [lo, hi] is to take as known, checked at the first n
-    midpoints it would take as known (False at or before a, True at or after b): where PRED is
-    found otherwise at one, it changes more than once in [lo, hi], and the bracket returned is the
-    one the bisection without (a, b) had reached there, with that midpoint's true value, so that
-    `bisect` goes on from it as without (a, b). A template: PRED is the scene's (`checker`)."""
+    """A bracket (a, b) that `bisect` on [lo, hi] is to take as known (from a quantity whose sign
+    change makes PRED's, `root`), checked where `bisect` would take PRED as known: at its ends
+    (False at a, True at b; an end that fails cuts the bracket there, as the change is then
+    outside it), then at the first n midpoints outside it. Where PRED is found otherwise at one,
+    it changes more than once in [lo, hi], and the bracket returned is the one the bisection
+    without (a, b) had reached there, with that midpoint's true value, so that `bisect` goes on
+    from it as without (a, b). A template: PRED is the scene's (`checker`)."""
+    if a > lo and PRED(ctx, a):
+        return lo, a
+    if b < hi and not PRED(ctx, b):
+        return b, hi
     for _ in range(n):
         mid = 0.5 * (lo + hi)
         if mid > a and mid < b:

@@ -188,6 +188,18 @@ def fence_in_load(olx, oly, tlx, tly, hl, hw, grow):
 
 
 @kernel(inline=True)
+def fence_part(fl, hl, hw, x, yy, ca, sa, cphi, sphi, grow):
+    """The fence against the load at centroid (x, yy) (docs/model.md (5.5)-(5.7)): the tip T (the
+    world frame), the pivot O' and the tip T' in the load's frame, and fence_in_load's part of the
+    fence inside the load grown by `grow`: (tx, ty, olx, oly, tlx, tly, u_a, u_b, e_a, e_b)."""
+    tx, ty = tip_position(fl, ca, sa)
+    tlx, tly, _, _ = tip_local(tx, ty, x, yy, cphi, sphi)
+    olx, oly = pivot_local(x, yy, cphi, sphi)
+    lo, hi, e_lo, e_hi = fence_in_load(olx, oly, tlx, tly, hl, hw, grow)
+    return tx, ty, olx, oly, tlx, tly, lo, hi, e_lo, e_hi
+
+
+@kernel(inline=True)
 def pivot_local(x, yy, cphi, sphi):
     """The pivot O in the load's frame (docs/model.md (5.6) with P = O)."""
     return -(cphi * x + sphi * yy), sphi * x - cphi * yy

@@ -128,11 +128,11 @@ def known_range(t, h, y0, Q, p, iw, tmp, lo, hi, mask, k, tol):
     """Where the change of a slot in mask inside [lo, hi] (fractions of the step [t, t + h] with
     dense output Q) is taken to lie before its bisection (search.bisect's (a, b)): the sign
     change of a part of slot k's margins (slots.slot_margins; k from slots.margin_slot, -1:
-    none), the first part >= 0 at lo and < 0 at hi, bracketed by search.root to tol, its ends
-    then tested by the bisection's own predicate. A change the part does not make (the
-    manifold's choice, another slot) fails that test, and the bracket is cut at the end that
-    failed; then the bisection's first numerics.MARGIN_CHECKS midpoints outside it are tested
-    (search.checked). The bisection then ends where it would have without it, bit for bit, when
+    none), the first part >= 0 at lo and < 0 at hi, bracketed by search.root to tol, then
+    checked by the bisection's own predicate (search.checked): at its ends (a change the part
+    does not make, the manifold's choice or another slot's, fails there, and the bracket is cut
+    at the end that failed), and at the bisection's first numerics.MARGIN_CHECKS midpoints
+    outside it. The bisection then ends where it would have without it, bit for bit, when
     the predicate changes once in [lo, hi], or changes back over one of the midpoints tested;
     where it changes and changes back between them, or flickers with rounding at the
     threshold, it may end at another change. Returns (lo, hi) when nothing is known."""
@@ -147,12 +147,7 @@ def known_range(t, h, y0, Q, p, iw, tmp, lo, hi, mask, k, tol):
     if j < 0:
         return lo, hi
     a, b = find_margin((t, h, y0, Q, p, iw, tmp, k, j), lo, hi, q_lo[j], q_hi[j], tol, NU.MARGIN_EVALS)
-    test = (t, h, y0, Q, p, iw, tmp, mask)
-    if a > lo and mask_changed(test, a):
-        return lo, a
-    if b < hi and not mask_changed(test, b):
-        return b, hi
-    return check_change(test, lo, hi, a, b, NU.MARGIN_CHECKS)
+    return check_change((t, h, y0, Q, p, iw, tmp, mask), lo, hi, a, b, NU.MARGIN_CHECKS)
 
 
 @kernel(inline=True)
@@ -207,18 +202,13 @@ def crossing_candidate(k, iw, codes1, g0, g1):
 @kernel(inline=True)
 def known_crossing(ctx, tol):
     """The bracket of a slot's gap sign change (gap_crossed's ctx) that search.bisect takes as
-    known, as known_range's: the gap (gap_part) bracketed by search.root to tol, the ends tested
-    by gap_crossed, then the bisection's first numerics.MARGIN_CHECKS midpoints outside it
-    (search.checked); (0, 1) when the gap's ends do not bracket a sign change."""
+    known, as known_range's: the gap (gap_part) bracketed by search.root to tol, then checked by
+    gap_crossed (search.checked); (0, 1) when the gap's ends do not bracket a sign change."""
     q0 = gap_part(ctx, 0.0)
     q1 = gap_part(ctx, 1.0)
     if not (q0 >= 0.0 and q1 < 0.0):
         return 0.0, 1.0
     a, b = find_gap(ctx, 0.0, 1.0, q0, q1, tol, NU.MARGIN_EVALS)
-    if a > 0.0 and gap_crossed(ctx, a):
-        return 0.0, a
-    if b < 1.0 and not gap_crossed(ctx, b):
-        return b, 1.0
     return check_crossing(ctx, 0.0, 1.0, a, b, NU.MARGIN_CHECKS)
 
 

@@ -13,8 +13,7 @@ from fencesweep.model import layout as Lp
 from fencesweep.model.contact import belt_friction
 from fencesweep.model.drive import drive_angle
 from fencesweep.model.scenes.contacts import (APART, FACE, N_SLOTS, PIVOT, PUSH, RAIL0, TIP, corner_fence_force,
-                                              corner_fence_geometry, corner_rail_force, fence_in_load, pivot_local,
-                                              tip_edge_force, tip_edge_normal, tip_local, tip_position,
+                                              corner_fence_geometry, corner_rail_force, fence_part, tip_edge_force, tip_edge_normal, tip_local, tip_position,
                                               beyond_depth, side_edge)
 from fencesweep.model.scenes.cycle.layout import (AX_CA, AX_CPHI, AX_DAL, AX_DMAX, AX_DRIVE, AX_FRAME, AX_FX, AX_FY, AX_KEPT, AX_NF,
                                                   AX_NR, AX_PDISS, AX_PFRIC, AX_SA, AX_SPHI, AX_TAU, AX_TQ, AX_TRIG_AL, AX_TRIG_PHI,
@@ -171,11 +170,8 @@ def tip_sum(y, p, iw, ca, sa, dal, cphi, sphi, aux):
         beyond_sum(tag - FACE - 4, y, p, iw, ca, sa, dal, cphi, sphi, aux)
         return
     e = side_edge(tag - FACE) if tag >= FACE else tag  # the face's U on branch 0: the tip end below its edge
-    tx, ty = tip_position(p[Lp.FL], ca, sa)
-    tlx, tly, dx, dyy = tip_local(tx, ty, y[0], y[1], cphi, sphi)
-    olx, oly = pivot_local(y[0], y[1], cphi, sphi)
-    lo, hi, e_lo, e_hi = fence_in_load(olx, oly, tlx, tly, 0.5 * p[Lp.LL], 0.5 * p[Lp.AA],
-                                      NU.CONTACT_HYSTERESIS * p[Lp.FL])
+    lo, hi, e_lo, e_hi = fence_part(p[Lp.FL], 0.5 * p[Lp.LL], 0.5 * p[Lp.AA], y[0], y[1], ca, sa, cphi, sphi,
+                                    NU.CONTACT_HYSTERESIS * p[Lp.FL])[6:]
     if lo > hi:
         return
     edge_point_sum(e, hi, APART if e_hi == e else ct, y, p, ca, sa, dal, cphi, sphi, aux)

@@ -15,8 +15,8 @@ from fencesweep.model import layout as Lp
 from fencesweep.model import results as Rs
 from fencesweep.model.drive import drive_angle
 from fencesweep.model.scenes.contacts import (APART, CLIPPED, FACE, N_SLOTS, PIVOT, PUSH, RAIL0, TIP,
-                                              code_margins, corner_fence_geometry, edge_margin, edge_point_rate, fence_coords, fence_in_load, next_code,
-                                              pivot_local, tip_edge_normal, tip_gap, tip_local, tip_position,
+                                              code_margins, corner_fence_geometry, edge_margin, edge_point_rate, fence_coords, fence_part, next_code,
+                                              tip_edge_normal, tip_gap, tip_local, tip_position,
                                               beyond_depth, side_edge, under_tip_edge)
 from fencesweep.model.scenes.cycle.layout import (AX_CA, AX_CPHI, AX_DAL, AX_FRAME, AX_SA, AX_SPHI, IW_CODE, IW_EDGE,
                                                   IW_LOAD, IW_MODE)
@@ -181,10 +181,7 @@ def manifold(y, p, iw, ca, sa, dal, cphi, sphi, d_gap, d_force, geo):
     hw = 0.5 * p[Lp.AA]
     cur_tag = iw[IW_EDGE]
     cur = (FACE if cur_tag >= FACE else cur_tag) if fence_in_use(iw) else -1
-    tx, ty = tip_position(p[Lp.FL], ca, sa)
-    tlx, tly, _, _ = tip_local(tx, ty, y[0], y[1], cphi, sphi)
-    olx, oly = pivot_local(y[0], y[1], cphi, sphi)
-    lo, hi, e_lo, e_hi = fence_in_load(olx, oly, tlx, tly, hl, hw, d_gap)
+    tx, ty, olx, oly, tlx, tly, lo, hi, e_lo, e_hi = fence_part(p[Lp.FL], hl, hw, y[0], y[1], ca, sa, cphi, sphi, d_gap)
     ax, ay = olx + lo * (tlx - olx), oly + lo * (tly - oly)  # the ends of the fence's part inside the load
     bx, by = olx + hi * (tlx - olx), oly + hi * (tly - oly)
     if not (lo <= hi and inside_all(e_lo, e_hi, ax, ay, bx, by, hl, hw, -d_gap)):
@@ -282,10 +279,7 @@ def tip_margins(y, p, iw, ca, sa, dal, cphi, sphi):
     hl = 0.5 * p[Lp.LL]
     hw = 0.5 * p[Lp.AA]
     tag = iw[IW_EDGE]
-    tx, ty = tip_position(fl, ca, sa)
-    tlx, tly, _, _ = tip_local(tx, ty, y[0], y[1], cphi, sphi)
-    olx, oly = pivot_local(y[0], y[1], cphi, sphi)
-    lo, hi, _, _ = fence_in_load(olx, oly, tlx, tly, hl, hw, NU.CONTACT_HYSTERESIS * fl)
+    tx, ty, _, _, _, _, lo, hi, _, _ = fence_part(fl, hl, hw, y[0], y[1], ca, sa, cphi, sphi, NU.CONTACT_HYSTERESIS * fl)
     if tag >= FACE + 4:
         _, D, Dd = beyond_depth((tag - FACE) % 4, y, hl, hw, ca, sa, dal, cphi, sphi, iw)
     else:
