@@ -252,6 +252,14 @@ def rail_code(k, y, p, iw, cphi, sphi, d_gap, d_force):
 
 
 @kernel(inline=True)
+def slot_code_margins(cur, D, Dd, p):
+    """contacts.code_margins of a slot with code cur at D, D', with p's contact law and the
+    hysteresis next_code is given (numerics.CONTACT_HYSTERESIS x l, x F_ff)."""
+    return code_margins(cur, D, Dd, p[Lp.KC], p[Lp.CD], p[Lp.LAW], NU.CONTACT_HYSTERESIS * p[Lp.FL],
+                        NU.CONTACT_HYSTERESIS * p[Lp.FFORCE])
+
+
+@kernel(inline=True)
 def corner_margins(k, y, p, iw, ca, sa, dal, cphi, sphi):
     """How far corner k on the fence (slot 0-3) is at y from leaving its code and side in iw, in
     four parts, all >= 0 while corner_code keeps both (the manifold's choice of its axis aside)
@@ -263,8 +271,7 @@ def corner_margins(k, y, p, iw, ca, sa, dal, cphi, sphi):
     cur = iw[IW_CODE + k]
     if cur == APART:
         return max(-D, max(-s, s - fl)), max(fl - s, -D), s if iw[k] < 0 else math.inf, math.inf
-    dg, df = code_margins(cur, D, Dd, p[Lp.KC], p[Lp.CD], p[Lp.LAW], NU.CONTACT_HYSTERESIS * fl,
-                          NU.CONTACT_HYSTERESIS * p[Lp.FFORCE])
+    dg, df = slot_code_margins(cur, D, Dd, p)
     return s, fl - s, dg, df
 
 
@@ -284,8 +291,7 @@ def tip_margins(y, p, iw, ca, sa, dal, cphi, sphi):
         _, D, Dd = beyond_depth((tag - FACE) % 4, y, hl, hw, ca, sa, dal, cphi, sphi, iw)
     else:
         D, Dd = edge_end_depth(tag if tag < FACE else side_edge(tag - FACE), hi, tx, ty, y, p, dal, cphi, sphi)
-    dg, df = code_margins(iw[IW_CODE + TIP], D, Dd, p[Lp.KC], p[Lp.CD], p[Lp.LAW], NU.CONTACT_HYSTERESIS * fl,
-                          NU.CONTACT_HYSTERESIS * p[Lp.FFORCE])
+    dg, df = slot_code_margins(iw[IW_CODE + TIP], D, Dd, p)
     return dg, df, hi - lo, math.inf
 
 
