@@ -21,25 +21,11 @@ import sys
 import tempfile
 from pathlib import Path
 
-from common import ROOT, export
+from common import ROOT, SAMPLE_RUNS, export
 #: one tree: the sample's parameter vectors, then `n` passes of run_cycles with collection on
-WORKER = r"""
-import os, subprocess, sys
-import numpy as np
-from fencesweep.model import layout as Lp
-from fencesweep.model import params as P
-from fencesweep.model.prepare import prepare
-from fencesweep.model.scenes.stream import run_cycles
+WORKER = SAMPLE_RUNS + r"""
+import subprocess
 n = int(sys.argv[1])
-b2, k2 = np.linspace(0, 200, 81), np.linspace(100, 2100, 81)
-idx = np.random.default_rng(20261123).choice(81 * 81 * 2, 60, replace=False)
-args = []
-for i in idx:
-    p = prepare(P.resolve("cycle", ("small_far", "long_near")[i // 6561], B2=float(b2[i % 6561 // 81]),
-                          K2=float(k2[i % 81])))
-    loads = np.ascontiguousarray(p[list(Lp.LOAD_SLOTS)][None, :])
-    args.append((p, loads, float(p[Lp.TC]), np.empty((1, 40)), np.empty((0, 19)), np.zeros(2, np.int64)))
-run_cycles(*args[0])
 subprocess.run(["callgrind_control", "-i", "on", str(os.getpid())], capture_output=True)
 for _ in range(n):
     for a in args:

@@ -23,28 +23,14 @@ import sys
 import tempfile
 from pathlib import Path
 
-from common import ROOT, md_table
+from common import ROOT, SAMPLE_RUNS, md_table
 
 OUT = ROOT / "results" / "time_profile.md"
 
 #: the profiled process: the sample's parameter vectors, the perf map, then the timed passes
-WORKER = r"""
-import os, sys, time
-import numpy as np
-from fencesweep.model import layout as Lp
-from fencesweep.model import params as P
-from fencesweep.model.prepare import prepare
-from fencesweep.model.scenes.stream import run_cycles
+WORKER = SAMPLE_RUNS + r"""
+import time
 n, ctl, ack = int(sys.argv[1]), sys.argv[2], sys.argv[3]
-b2, k2 = np.linspace(0, 200, 81), np.linspace(100, 2100, 81)
-idx = np.random.default_rng(20261123).choice(81 * 81 * 2, 60, replace=False)
-args = []
-for i in idx:
-    p = prepare(P.resolve("cycle", ("small_far", "long_near")[i // 6561], B2=float(b2[i % 6561 // 81]),
-                          K2=float(k2[i % 81])))
-    loads = np.ascontiguousarray(p[list(Lp.LOAD_SLOTS)][None, :])
-    args.append((p, loads, float(p[Lp.TC]), np.empty((1, 40)), np.empty((0, 19)), np.zeros(2, np.int64)))
-run_cycles(*args[0])
 lib = next(iter(run_cycles.overloads.values())).library
 engine = lib._codegen._engine
 addrs = sorted((engine.get_function_address(f.name), f.name) for f in lib._final_module.functions
