@@ -10,9 +10,9 @@ Every scene's parameters are resolved by the reference (its case, B2, K2, the fl
 the same fully resolved values go to the engine. The SciPy runs use rtol 1e-6 and one atol 1e-6 for
 every component, near the engine's (TOL = 1e-6 times each component's scale: the fence length,
 ~1 m, or the fastest speed, ~2 m/s). Steps: the points each solve_ivp call returns (every accepted
-step), summed over the reference's event restarts. Radau is left out: its restarts at a contact
-change found the change again at the restart point and the cycle never ended (20,001 segments on
-long_near, B2 75, K2 1425).
+step), summed over the reference's event restarts. Radau is left out: on long_near (B2 75, K2 1425)
+the reference under Radau ran 20,001 segments in 74 s and returned peak_force 0 and t_exit 2e-5 s,
+where every other method finds the impact.
 """
 from __future__ import annotations
 
@@ -55,8 +55,8 @@ def scene(item: tuple) -> dict:
             out[m] = {**model.simulate_reference(params, method=m, rtol=RTOL, atol=ATOL), "steps": sum(steps)}
     finally:
         model.solve_ivp = solve
-    out["engine"] = {**fencesweep.simulate("cycle", **params)}
-    out["engine"]["steps"] = out["engine"]["n_steps"]
+    engine = fencesweep.simulate("cycle", **params)
+    out["engine"] = {**engine, "steps": engine["n_steps"]}
     return out
 
 
