@@ -278,3 +278,22 @@ def test_a_failing_or_stuck_helper_is_logged_and_stopped(tmp_path, monkeypatch, 
     assert time.monotonic() - t < 40
     assert said in caplog.text
     assert set(cache.DIR.glob("share-*")) == before and share._session is None
+
+
+def test_a_result_that_cannot_be_cached_is_warned_of_not_a_crash():
+    """Numba names the source file of a compile result it cannot cache (one with dynamic globals,
+    as a cold compile at NUMBA_OPT=0 makes) from the cache's locator: a KernelLocator must hold it."""
+    from types import SimpleNamespace
+
+    from numba.core.errors import NumbaWarning
+
+    from fencesweep.kernel.jit import _EntryCacheImpl
+    from fencesweep.kernel.locator import KernelLocator
+    from fencesweep.model.drive import fill_rocker_table
+
+    impl = _EntryCacheImpl(fill_rocker_table.py_func)
+    assert isinstance(impl.locator, KernelLocator)
+    cres = SimpleNamespace(lifted=(), library=SimpleNamespace(has_dynamic_globals=True),
+                           fndesc=SimpleNamespace(qualname="fill_rocker_table"))
+    with pytest.warns(NumbaWarning, match="Cannot cache compiled function"):
+        assert impl.check_cachable(cres) is False

@@ -17,6 +17,7 @@ class KernelLocator(CacheLocator):
     the kernel hash is (kernel/cache.py)."""
 
     def __init__(self, py_func, py_file):
+        self._py_file = py_file  # named by Numba's warning when a compile result cannot be cached
         self._lineno = py_func.__code__.co_firstlineno
         self._path = self.root() / Path(py_file).resolve().relative_to(cache.PKG).parent
 
