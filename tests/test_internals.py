@@ -55,6 +55,7 @@ SAMPLES = {
     "llvmlite.binding.ffi:_lib_wrapper": lambda: resolve("llvmlite.binding.ffi:lib"),
     "llvmlite.binding.ffi:_LLVMLock": lambda: getattr(resolve("llvmlite.binding.ffi:lib"), ATTRS["llvm_lock"].name),
     "numba.cuda.dispatcher:CUDADispatcher": lambda: _cuda().jit(_nothing),
+    "numba.core.caching:InTreeCacheLocator": lambda: resolve("numba.core.caching:InTreeCacheLocator")(_nothing, __file__),
 }
 
 

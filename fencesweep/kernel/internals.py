@@ -127,6 +127,9 @@ ATTRS = {
     "get_source_stamp": Attr("get_source_stamp", _LOCATOR, "class", ("locator",), "overridden: the kernel hash"),
     "get_disambiguator": Attr("get_disambiguator", _LOCATOR, "class", ("locator",), "overridden: the line number"),
     "from_function": Attr("from_function", _LOCATOR, "class", ("locator",), "overridden: the package's functions only"),
+    "locator_py_file": Attr("_py_file", f"{_CACHE}:InTreeCacheLocator", "instance", ("locator",),
+                            "kept by KernelLocator as Numba's locators keep it: a cache's check_cachable names it "
+                            "in its warning"),
     "find_referenced_environments": Attr("_find_referenced_environments", _RESULT, "class", ("share",),
                                          "called by _BitcodeImpl.reduce, as CompileResult._reduce does"),
     "rebuild_result": Attr("_rebuild", _RESULT, "class", ("share",),
