@@ -13,11 +13,16 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 
-#: a fresh process's set-up of the main job's fixed 60-scene sample (the seed of asv_bench
-#: main_job_sample) for the kernel's entry point, from the tree on its PYTHONPATH: `args`, one
-#: argument tuple of `run_cycles` a scene, on parameter vectors that tree's `prepare` made, and one
-#: call made (instructions.py and time_profile.py run it, then their own loop)
-SAMPLE_RUNS = r"""
+def sample_runs(step_factor: float = 1.0) -> str:
+    """Python code for a fresh process: the main job's fixed 60-scene sample (the seed of asv_bench
+    main_job_sample) set up for the kernel's entry point, from the tree on its PYTHONPATH: `args`,
+    one argument tuple of `run_cycles` a scene, on parameter vectors that tree's `prepare` made at
+    `step_factor`, and one call made (instructions.py and time_profile.py run it, then their own
+    loop)."""
+    return _SAMPLE_RUNS.replace("STEP_FACTOR", repr(float(step_factor)))
+
+
+_SAMPLE_RUNS = r"""
 import os, sys
 import numpy as np
 from fencesweep.model import layout as Lp
@@ -29,7 +34,7 @@ idx = np.random.default_rng(20261123).choice(81 * 81 * 2, 60, replace=False)
 args = []
 for i in idx:
     p = prepare(P.resolve("cycle", ("small_far", "long_near")[i // 6561], B2=float(b2[i % 6561 // 81]),
-                          K2=float(k2[i % 81])))
+                          K2=float(k2[i % 81]), step_factor=STEP_FACTOR))
     loads = np.ascontiguousarray(p[list(Lp.LOAD_SLOTS)][None, :])
     args.append((p, loads, float(p[Lp.TC]), np.empty((1, 40)), np.empty((0, 19)), np.zeros(2, np.int64)))
 run_cycles(*args[0])

@@ -21,9 +21,9 @@ import sys
 import tempfile
 from pathlib import Path
 
-from common import ROOT, SAMPLE_RUNS, export
+from common import ROOT, export, sample_runs
 #: one tree: the sample's parameter vectors, then `n` passes of run_cycles with collection on
-WORKER = SAMPLE_RUNS + r"""
+WORKER = sample_runs() + r"""
 import subprocess
 n = int(sys.argv[1])
 subprocess.run(["callgrind_control", "-i", "on", str(os.getpid())], capture_output=True)

@@ -23,12 +23,12 @@ import sys
 import tempfile
 from pathlib import Path
 
-from common import ROOT, SAMPLE_RUNS, md_table
+from common import ROOT, md_table, sample_runs
 
 OUT = ROOT / "results" / "time_profile.md"
 
-#: the profiled process: the sample's parameter vectors, the perf map, then the timed passes
-WORKER = SAMPLE_RUNS + r"""
+#: the profiled process after the sample's set-up (common.sample_runs): the perf map, then the timed passes
+WORKER = r"""
 import time
 n, ctl, ack = int(sys.argv[1]), sys.argv[2], sys.argv[3]
 lib = next(iter(run_cycles.overloads.values())).library
@@ -65,7 +65,7 @@ def name_of(symbol: str) -> str:
     return ".".join(words[-2:]) if words else symbol
 
 
-def profile(passes: int) -> tuple[float, list]:
+def profile(passes: int, step_factor: float = 1.0) -> tuple[float, list]:
     """ms a cycle and [(function, share of the kernel's samples)], from a fresh process."""
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
@@ -74,7 +74,7 @@ def profile(passes: int) -> tuple[float, list]:
         os.mkfifo(ack)
         env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp / "cache"), "PYTHONPATH": str(ROOT)}
         run = subprocess.run(["perf", "record", "-e", "cpu-clock", "-F", "10000", "-D", "-1", "--control",
-                              f"fifo:{ctl},{ack}", "-o", str(data), "--", sys.executable, "-c", WORKER, str(passes),
+                              f"fifo:{ctl},{ack}", "-o", str(data), "--", sys.executable, "-c", sample_runs(step_factor) + WORKER, str(passes),
                               str(ctl), str(ack)], env=env, capture_output=True, text=True, cwd=ROOT)
         if run.returncode:
             raise SystemExit(f"perf record failed:\n{run.stderr[-3000:]}")
@@ -89,10 +89,12 @@ def profile(passes: int) -> tuple[float, list]:
     return ms, rows
 
 
-def page(ms: float, rows: list, passes: int) -> str:
+def page(ms: float, rows: list, passes: int, step_factor: float) -> str:
+    flag = f" --step-factor {step_factor:g}" if step_factor != 1.0 else ""
     lines = ["# Where a warm cycle's time goes, by compiled function", "",
-             f"Regenerate: `python benchmarks/time_profile.py --passes {passes}` (what is measured: its docstring). "
-             f"The main job's 60-scene sample through `run_cycles`, {passes} passes, this machine's build: "
+             f"Regenerate: `python benchmarks/time_profile.py --passes {passes}{flag}` (what is measured: its "
+             f"docstring). The main job's 60-scene sample through `run_cycles`{', at step_factor ' + format(step_factor, 'g') if flag else ''}, "
+             f"{passes} passes, this machine's build: "
              f"**{ms:.4f} ms a cycle** while sampled.", ""]
     table = [[f"`{name}`" if "[JIT]" in dso else f"{name} ({dso})", f"{share:.1f} %", f"{share / 100 * ms * 1e3:.1f}"]
              for dso, name, share in rows if share >= 0.1]
@@ -103,10 +105,11 @@ def page(ms: float, rows: list, passes: int) -> str:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--passes", type=int, default=40)
+    ap.add_argument("--step-factor", type=float, default=1.0, help="the sample's step_factor (TOL x its 5th power)")
     ap.add_argument("--out", default=str(OUT))
     args = ap.parse_args()
-    ms, rows = profile(args.passes)
-    text = page(ms, rows, args.passes)
+    ms, rows = profile(args.passes, args.step_factor)
+    text = page(ms, rows, args.passes, args.step_factor)
     print(text)
     Path(args.out).write_text(text)
 
