@@ -40,6 +40,7 @@ for i in idx:
 run_cycles(*args[0])
 """
 
+
 def run_json(code: str, *args, env: dict | None = None, cwd: Path = ROOT):
     """`python -c code args` in a fresh process (env added to this one's): the JSON of its last line."""
     r = subprocess.run([sys.executable, "-c", code, *map(str, args)], capture_output=True, text=True, cwd=cwd,

@@ -2,7 +2,7 @@
 time beside instructions.py's counts (callgrind counts instructions of a build for the CPU valgrind
 emulates, which need not track the time: results/kernel_cuts.md).
 
-    python benchmarks/time_profile.py [--passes 40] [--out results/time_profile.md]
+    python benchmarks/time_profile.py [--passes 40] [--step-factor 1] [--out results/time_profile.md]
 
 Linux `perf record` samples the CPU clock (no hardware counters needed) of one process that
 compiles the kernel afresh (an empty Numba cache of its own, so that the entry point's module, and
@@ -51,7 +51,7 @@ for _ in range(n):
         run_cycles(*a)
 seconds = time.perf_counter() - t
 say("disable")
-print(seconds / (n * len(args)) * 1e3)
+print(os.getpid(), seconds / (n * len(args)) * 1e3)
 """
 
 
@@ -74,13 +74,15 @@ def profile(passes: int, step_factor: float = 1.0) -> tuple[float, list]:
         os.mkfifo(ack)
         env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp / "cache"), "PYTHONPATH": str(ROOT)}
         run = subprocess.run(["perf", "record", "-e", "cpu-clock", "-F", "10000", "-D", "-1", "--control",
-                              f"fifo:{ctl},{ack}", "-o", str(data), "--", sys.executable, "-c", sample_runs(step_factor) + WORKER, str(passes),
-                              str(ctl), str(ack)], env=env, capture_output=True, text=True, cwd=ROOT)
+                              f"fifo:{ctl},{ack}", "-o", str(data), "--", sys.executable, "-c",
+                              sample_runs(step_factor) + WORKER, str(passes), str(ctl), str(ack)], env=env, capture_output=True, text=True, cwd=ROOT)
         if run.returncode:
             raise SystemExit(f"perf record failed:\n{run.stderr[-3000:]}")
-        ms = float(run.stdout.strip().splitlines()[-1])
+        pid, ms = run.stdout.strip().splitlines()[-1].split()
         rep = subprocess.run(["perf", "report", "-i", str(data), "--stdio", "--sort", "dso,sym", "--percentage",
                               "relative"], capture_output=True, text=True)
+        Path(f"/tmp/perf-{pid}.map").unlink(missing_ok=True)  # read by the report only
+    ms = float(ms)
     rows = []
     for line in rep.stdout.splitlines():
         m = re.match(r"\s*([\d.]+)%\s+(.+?)\s+\[[.k]\]\s+(\S+)", line)
@@ -91,9 +93,10 @@ def profile(passes: int, step_factor: float = 1.0) -> tuple[float, list]:
 
 def page(ms: float, rows: list, passes: int, step_factor: float) -> str:
     flag = f" --step-factor {step_factor:g}" if step_factor != 1.0 else ""
+    at = f", at step_factor {step_factor:g}" if flag else ""
     lines = ["# Where a warm cycle's time goes, by compiled function", "",
              f"Regenerate: `python benchmarks/time_profile.py --passes {passes}{flag}` (what is measured: its "
-             f"docstring). The main job's 60-scene sample through `run_cycles`{', at step_factor ' + format(step_factor, 'g') if flag else ''}, "
+             f"docstring). The main job's 60-scene sample through `run_cycles`{at}, "
              f"{passes} passes, this machine's build: "
              f"**{ms:.4f} ms a cycle** while sampled.", ""]
     table = [[f"`{name}`" if "[JIT]" in dso else f"{name} ({dso})", f"{share:.1f} %", f"{share / 100 * ms * 1e3:.1f}"]
